@@ -1,0 +1,122 @@
+"""The paper's wall frame (Elshaw et al., Fig. 1): a pose relative to the nearest wall.
+
+The square arena is centred on the world origin, walls parallel to the world axes. Its diagonals split it
+into four areas, one per wall; a robot in a wall's area is described by
+
+- ``x``: distance in metres from that wall (0 at the wall, ``half_side`` at the centre);
+- ``y``: position in metres along the wall, 0 at its middle, positive to the right of an observer who
+  faces the wall from inside the arena;
+- ``phi``: heading in degrees relative to facing the wall, in [-180, 180); 0 faces the wall, positive is
+  turned counter-clockwise (to the left), +-180 faces away from it.
+
+World frame: x east, y north (towards the ``top`` wall), yaw in radians counter-clockwise from +x.
+Points exactly on a diagonal belong to the first of their walls in ``WALL_NAMES`` order.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+WALL_NAMES = ("top", "right", "bottom", "left")
+
+# Outward unit normal of each wall (from the arena centre towards the wall), world frame.
+_NORMALS = {
+    "top": (0.0, 1.0),
+    "right": (1.0, 0.0),
+    "bottom": (0.0, -1.0),
+    "left": (-1.0, 0.0),
+}
+
+
+def wrap_degrees(angle_deg):
+    """Returns ``angle_deg`` wrapped to [-180, 180)."""
+    return (np.asarray(angle_deg, dtype=float) + 180.0) % 360.0 - 180.0
+
+
+@dataclasses.dataclass(frozen=True)
+class ArenaGeometry:
+    """A square arena centred on the world origin.
+
+    Attributes:
+      side_m: inner side length in metres (wall face to wall face).
+    """
+
+    side_m: float = 4.0
+
+    def __post_init__(self):
+        if not np.isfinite(self.side_m) or self.side_m <= 0:
+            raise ValueError(f"side_m must be a positive finite number of metres, got {self.side_m!r}")
+
+    @property
+    def half_side_m(self) -> float:
+        """Returns the distance in metres from the centre to each wall."""
+        return 0.5 * self.side_m
+
+
+@dataclasses.dataclass(frozen=True)
+class WallPose:
+    """A pose in the wall frame: ``x_m``, ``y_m`` in metres, ``phi_deg`` in degrees, and the wall."""
+
+    x_m: float
+    y_m: float
+    phi_deg: float
+    wall: str
+
+    def as_array(self) -> np.ndarray:
+        """Returns ``[x_m, y_m, phi_deg]`` as float64."""
+        return np.array([self.x_m, self.y_m, self.phi_deg], dtype=float)
+
+
+def _check_wall(wall: str) -> None:
+    if wall not in _NORMALS:
+        raise ValueError(f"unknown wall {wall!r}; allowed: {', '.join(WALL_NAMES)}")
+
+
+def nearest_wall(x_world: float, y_world: float) -> str:
+    """Returns the name of the wall whose diagonal area holds the world point (metres)."""
+    scores = [x_world * nx + y_world * ny for nx, ny in (_NORMALS[w] for w in WALL_NAMES)]
+    return WALL_NAMES[int(np.argmax(scores))]
+
+
+def world_to_wall(
+    x_world: float, y_world: float, yaw_rad: float, arena: ArenaGeometry = ArenaGeometry(),
+    wall: str | None = None,
+) -> WallPose:
+    """Returns the wall-frame pose of a planar world pose.
+
+    Args:
+      x_world, y_world: position in metres, world frame.
+      yaw_rad: heading in radians, counter-clockwise from world +x.
+      arena: the arena's geometry.
+      wall: force this wall's frame instead of the nearest one.
+    """
+    values = (x_world, y_world, yaw_rad)
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"pose must be finite, got x={x_world!r}, y={y_world!r}, yaw={yaw_rad!r}")
+    if wall is None:
+        wall = nearest_wall(x_world, y_world)
+    _check_wall(wall)
+    nx, ny = _NORMALS[wall]
+    # Along-wall axis: to the right of an observer facing the wall, i.e. the normal turned by -90 deg.
+    tx, ty = ny, -nx
+    x_m = arena.half_side_m - (x_world * nx + y_world * ny)
+    y_m = x_world * tx + y_world * ty
+    facing_deg = np.degrees(np.arctan2(ny, nx))
+    phi_deg = float(wrap_degrees(np.degrees(yaw_rad) - facing_deg))
+    return WallPose(float(x_m), float(y_m), phi_deg, wall)
+
+
+def wall_to_world(
+    pose: WallPose, arena: ArenaGeometry = ArenaGeometry()
+) -> tuple[float, float, float]:
+    """Returns ``(x_world, y_world, yaw_rad)`` for a wall-frame pose (the inverse of ``world_to_wall``)."""
+    _check_wall(pose.wall)
+    nx, ny = _NORMALS[pose.wall]
+    tx, ty = ny, -nx
+    depth = arena.half_side_m - pose.x_m
+    x_world = depth * nx + pose.y_m * tx
+    y_world = depth * ny + pose.y_m * ty
+    yaw_deg = float(wrap_degrees(pose.phi_deg + np.degrees(np.arctan2(ny, nx))))
+    return float(x_world), float(y_world), float(np.radians(yaw_deg))
