@@ -1,0 +1,131 @@
+"""Composer entities: the PeopleBot (attached twice, as teacher and student), the arena, the table
+and the object."""
+
+from __future__ import annotations
+
+import numpy as np
+from dm_control import composer, mjcf
+from dm_control.composer.observation import observable
+
+from peoplebot_sim import assets
+from perception import layout
+
+#: Where the table stands: its centre, world frame, metres (against the middle of the top wall).
+TABLE_POSITION = (0.0, 1.8, 0.0)
+#: Where the object stands on the table, world frame, metres (near the table's front edge).
+OBJECT_POSITION = (0.0, 1.70, 0.50)
+
+
+class PeopleBot(composer.Entity):
+    """An ActivMedia PeopleBot whose marker plates carry the ids of ``role`` ('teacher' or 'student')."""
+
+    def _build(self, role: str):
+        if role not in layout.ROBOT_NAMES:
+            raise ValueError(f"unknown robot role {role!r}; allowed: {', '.join(layout.ROBOT_NAMES)}")
+        self._role = role
+        self._mjcf_root = mjcf.from_path(str(assets.PEOPLEBOT_XML))
+        self._mjcf_root.model = role
+        for placement in layout.default_layout():
+            if placement.robot != role:
+                continue
+            name = f"marker_{placement.face}"
+            texture = self._mjcf_root.asset.add(
+                "texture", name=f"{name}_tex", type="2d",
+                file=assets.marker_texture_asset(placement.marker_id, placement.size_m))
+            material = self._mjcf_root.asset.add("material", name=f"{name}_mat", texture=texture)
+            self._mjcf_root.find("geom", name).material = material
+        self._actuators = {a.name: a for a in self._mjcf_root.find_all("actuator")}
+
+    def _build_observables(self):
+        return PeopleBotObservables(self)
+
+    @property
+    def mjcf_model(self):
+        return self._mjcf_root
+
+    @property
+    def role(self) -> str:
+        """Returns 'teacher' or 'student'."""
+        return self._role
+
+    @property
+    def root_body(self):
+        return self._mjcf_root.find("body", "base")
+
+    @property
+    def actuators(self) -> dict:
+        """Returns the MJCF actuators by name: forward, turn, gripper_lift, gripper_paddles, head_pan,
+        head_tilt."""
+        return self._actuators
+
+    @property
+    def head_camera(self):
+        return self._mjcf_root.find("camera", "head_camera")
+
+    def planar_pose(self, physics) -> np.ndarray:
+        """Returns ``[x, y, yaw]``: world position in metres and heading in radians (CCW from +x)."""
+        xpos = physics.bind(self.root_body).xpos
+        xmat = physics.bind(self.root_body).xmat
+        return np.array([xpos[0], xpos[1], np.arctan2(xmat[3], xmat[0])])
+
+    def set_planar_pose(self, physics, x: float, y: float, yaw: float) -> None:
+        """Puts the robot on the floor at world ``(x, y)`` metres with heading ``yaw`` radians, at rest."""
+        quat = np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+        self.set_pose(physics, position=np.array([x, y, 0.0]), quaternion=quat)
+        self.set_velocity(physics, velocity=np.zeros(3), angular_velocity=np.zeros(3))
+
+
+class PeopleBotObservables(composer.Observables):
+    """The robot's own observables: its head camera frames and its ground-truth planar pose."""
+
+    @composer.observable
+    def head_camera(self):
+        return observable.MJCFCamera(self._entity.head_camera, width=320, height=240)
+
+    @composer.observable
+    def planar_pose(self):
+        return observable.Generic(self._entity.planar_pose)
+
+
+class _FileEntity(composer.Entity):
+    """An entity whose model is one MJCF file."""
+
+    def _build(self, path):
+        self._mjcf_root = mjcf.from_path(str(path))
+
+    @property
+    def mjcf_model(self):
+        return self._mjcf_root
+
+
+class Table(_FileEntity):
+    """The table the teacher docks at (``models/arena/table.xml``)."""
+
+    def _build(self):
+        super()._build(assets.TABLE_XML)
+
+
+class GraspObject(_FileEntity):
+    """The object on the table (``models/arena/object.xml``)."""
+
+    def _build(self):
+        super()._build(assets.OBJECT_XML)
+
+    @property
+    def body(self):
+        return self._mjcf_root.find("body", "object")
+
+
+class Arena(_FileEntity):
+    """The walled arena with its cameras (``models/arena/arena.xml``)."""
+
+    def _build(self):
+        super()._build(assets.ARENA_XML)
+
+    @property
+    def overhead_camera(self):
+        return self._mjcf_root.find("camera", "overhead")
+
+    @property
+    def showcase_camera(self):
+        return self._mjcf_root.find("camera", "showcase")

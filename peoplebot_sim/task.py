@@ -1,0 +1,282 @@
+"""The imitation task: a teacher PeopleBot loops go-pick-lift while a student PeopleBot watches.
+
+``load()`` builds a ``dm_env.Environment`` (dm-control composer). The action drives the student; the
+scripted teacher (``peoplebot_sim.teacher``) drives itself through the same four directives.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from dm_control import composer
+from dm_control.composer.observation import observable
+from dm_env import specs
+
+from peoplebot_sim import directives, entities
+from peoplebot_sim.teacher import Teacher, TeacherConfig
+from perception.wallframe import ArenaGeometry, world_to_wall
+
+#: Student actuators in action order, with units.
+ACTION_NAMES = ("forward", "turn", "gripper_lift", "gripper_paddles", "head_pan", "head_tilt")
+ACTION_UNITS = ("m/s", "rad/s", "m", "m", "rad", "rad")
+CAMERA_NAMES = ("overhead", "head")
+#: Where the student watches from, world (x m, y m, yaw rad): the bottom-left corner, facing the centre.
+STUDENT_WATCH_POSE = (-1.45, -1.45, math.pi / 4)
+#: Where the paper's student starts performing (Fig. 4): top middle of the arena, facing up.
+STUDENT_PERFORM_POSE = (0.0, 0.6, math.pi / 2)
+
+
+@dataclasses.dataclass(frozen=True)
+class TaskConfig:
+    """How the imitation world is built.
+
+    Attributes:
+      with_teacher: put the scripted teacher in the arena (off for the student performing alone).
+      cameras: camera observables to enable, from ``CAMERA_NAMES`` (empty for speed).
+      width, height: camera frame size in pixels.
+      control_timestep: seconds per environment step (one directive).
+      physics_timestep: seconds per physics step; must divide ``control_timestep``.
+      drive: the directives' wheel-servo targets.
+      teacher: the teacher's behaviour parameters.
+      student_pose: the student's start ``(x, y, yaw)``; None draws nothing and uses the watching spot.
+      teacher_pose: the teacher's start ``(x, y, yaw)``; None draws a random free pose each episode.
+      time_limit: episode length in seconds (``float('inf')`` for endless).
+    """
+
+    with_teacher: bool = True
+    cameras: tuple = ()
+    width: int = 320
+    height: int = 240
+    control_timestep: float = 0.1
+    physics_timestep: float = 0.01
+    drive: directives.DriveSpeeds = directives.DriveSpeeds()
+    teacher: TeacherConfig = TeacherConfig()
+    student_pose: tuple | None = None
+    teacher_pose: tuple | None = None
+    time_limit: float = float("inf")
+
+    def __post_init__(self):
+        for camera in self.cameras:
+            if camera not in CAMERA_NAMES:
+                raise ValueError(f"unknown camera {camera!r}; allowed: {', '.join(CAMERA_NAMES)}")
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, np.integer)) or not 16 <= value <= 1280:
+                raise ValueError(f"{name} must be an integer number of pixels in [16, 1280], got {value!r}")
+        if self.height > 960:
+            raise ValueError(f"height must be at most 960 pixels (the model's offheight), got {self.height}")
+        for name in ("control_timestep", "physics_timestep"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number of seconds, got {value!r}")
+        ratio = self.control_timestep / self.physics_timestep
+        if abs(ratio - round(ratio)) > 1e-6:
+            raise ValueError(
+                f"control_timestep {self.control_timestep} must be a multiple of physics_timestep "
+                f"{self.physics_timestep}")
+        if not self.time_limit > 0:
+            raise ValueError(f"time_limit must be positive seconds, got {self.time_limit!r}")
+        for name in ("student_pose", "teacher_pose"):
+            pose = getattr(self, name)
+            if pose is not None and (len(pose) != 3 or not np.all(np.isfinite(pose))):
+                raise ValueError(f"{name} must be None or three finite numbers (x m, y m, yaw rad), "
+                                 f"got {pose!r}")
+
+
+class ImitationTask(composer.Task):
+    """The teacher loops go-pick-lift; the agent's action drives the student."""
+
+    def __init__(self, config: TaskConfig = TaskConfig()):
+        self.config = config
+        self.geometry = ArenaGeometry()
+        self._arena = entities.Arena()
+        self._student = entities.PeopleBot("student")
+        self._arena.attach(self._student).add("freejoint")
+        self._teacher = None
+        if config.with_teacher:
+            self._teacher = entities.PeopleBot("teacher")
+            self._arena.attach(self._teacher).add("freejoint")
+        self._table = entities.Table()
+        self._arena.attach(self._table).pos = entities.TABLE_POSITION
+        self._object = entities.GraspObject()
+        frame = self._arena.attach(self._object)
+        frame.pos = entities.OBJECT_POSITION
+        frame.add("freejoint")
+        self.teacher_controller = Teacher(config.teacher, self.geometry)
+        self.collisions = 0
+        self._in_contact = False
+        self._last_directive = "forward"
+        self.set_timesteps(config.control_timestep, config.physics_timestep)
+        self._task_observables = self._make_observables()
+
+    # ------------------------------------------------------------------ entities
+    @property
+    def root_entity(self):
+        return self._arena
+
+    @property
+    def arena(self) -> entities.Arena:
+        return self._arena
+
+    @property
+    def student(self) -> entities.PeopleBot:
+        return self._student
+
+    @property
+    def teacher(self) -> entities.PeopleBot | None:
+        return self._teacher
+
+    @property
+    def task_observables(self):
+        return self._task_observables
+
+    def _make_observables(self):
+        c = self.config
+        no_shadow = {"shadow": False}
+        obs = {
+            "student_pose": observable.Generic(self._student.planar_pose),
+            "student_wall_pose": observable.Generic(lambda p: self._wall_pose(self._student, p)),
+        }
+        if self._teacher is not None:
+            obs["teacher_pose"] = observable.Generic(self._teacher.planar_pose)
+            obs["teacher_wall_pose"] = observable.Generic(lambda p: self._wall_pose(self._teacher, p))
+            obs["teacher_word"] = observable.Generic(
+                lambda _: np.array(directives.word_index(self.teacher_controller.word), np.int32))
+            obs["teacher_directive"] = observable.Generic(
+                lambda _: np.array(directives.directive_index(self._last_directive), np.int32))
+        obs["overhead_camera"] = observable.MJCFCamera(
+            self._arena.overhead_camera, width=c.width, height=c.height, render_flag_overrides=no_shadow)
+        obs["head_camera"] = observable.MJCFCamera(
+            self._student.head_camera, width=c.width, height=c.height, render_flag_overrides=no_shadow)
+        for name, ob in obs.items():
+            camera = name.removesuffix("_camera")
+            ob.enabled = camera in c.cameras if name.endswith("_camera") else True
+        return obs
+
+    def _wall_pose(self, robot, physics) -> np.ndarray:
+        x, y, yaw = robot.planar_pose(physics)
+        return world_to_wall(x, y, yaw, self.geometry).as_array()
+
+    # ------------------------------------------------------------------ spec
+    def action_spec(self, physics):
+        acts = [self._student.actuators[n] for n in ACTION_NAMES]
+        ranges = physics.bind(acts).ctrlrange
+        return specs.BoundedArray(
+            shape=(len(acts),), dtype=np.float64, minimum=ranges[:, 0], maximum=ranges[:, 1],
+            name="\t".join(f"{n} ({u})" for n, u in zip(ACTION_NAMES, ACTION_UNITS)))
+
+    def get_reward(self, physics):
+        return 0.0
+
+    def should_terminate_episode(self, physics):
+        return physics.data.time >= self.config.time_limit - 1e-9
+
+    def get_discount(self, physics):
+        return 1.0
+
+    # ------------------------------------------------------------------ episode
+    def initialize_episode(self, physics, random_state):
+        rng = np.random.default_rng(random_state.randint(2**31))
+        student_pose = self.config.student_pose or STUDENT_WATCH_POSE
+        self._student.set_planar_pose(physics, *student_pose)
+        if self._teacher is not None:
+            pose = self.config.teacher_pose or self.random_free_pose(rng, avoid=student_pose)
+            self._teacher.set_planar_pose(physics, *pose)
+        self._object.set_pose(physics, position=np.array(entities.OBJECT_POSITION),
+                              quaternion=np.array([1.0, 0, 0, 0]))
+        self.teacher_controller.reset(rng)
+        self._last_directive = self.teacher_controller.directive
+        self.collisions = 0
+        self._in_contact = False
+
+    def random_free_pose(self, rng, avoid=None, margin_m: float = 0.6) -> tuple[float, float, float]:
+        """Returns a random ``(x, y, yaw)`` at least ``margin_m`` from walls, clear of the table and of
+        the pose ``avoid``."""
+        h = self.geometry.half_side_m - margin_m
+        for _ in range(1000):
+            x, y = rng.uniform(-h, h, size=2)
+            clear_table = not (abs(x) < 0.5 + margin_m and y > 1.6 - margin_m)
+            clear_robot = avoid is None or math.hypot(x - avoid[0], y - avoid[1]) > 1.0
+            if clear_table and clear_robot:
+                return float(x), float(y), float(rng.uniform(-math.pi, math.pi))
+        raise RuntimeError("found no free pose in 1000 draws")
+
+    def before_step(self, physics, action, random_state):
+        action = np.asarray(action, dtype=float)
+        spec = self.action_spec(physics)
+        if action.shape != spec.shape:
+            raise ValueError(f"action must have shape {spec.shape} ({', '.join(ACTION_NAMES)}), "
+                             f"got {action.shape}")
+        if not np.all(np.isfinite(action)):
+            raise ValueError(f"action must be finite, got {action}")
+        bad = (action < spec.minimum - 1e-9) | (action > spec.maximum + 1e-9)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"action {ACTION_NAMES[i]}={action[i]} is outside "
+                             f"[{spec.minimum[i]}, {spec.maximum[i]}] {ACTION_UNITS[i]}")
+        physics.bind([self._student.actuators[n] for n in ACTION_NAMES]).ctrl = action
+        if self._teacher is not None:
+            self.drive_teacher(physics)
+
+    def drive_teacher(self, physics) -> str:
+        """Steps the teacher's controller and sets its wheel servos; returns its directive."""
+        student = self._student.planar_pose(physics)
+        directive = self.teacher_controller.step(
+            self._teacher.planar_pose(physics), student, self.config.control_timestep)
+        linear, turn = self.config.drive.command(directive)
+        physics.bind(self._teacher.actuators["forward"]).ctrl = linear
+        physics.bind(self._teacher.actuators["turn"]).ctrl = turn
+        self._last_directive = directive
+        return directive
+
+    def after_step(self, physics, random_state):
+        if self._teacher is not None:
+            touching = self.teacher_touches_obstacle(physics)
+            if touching and not self._in_contact:
+                self.collisions += 1
+            self._in_contact = touching
+
+    def teacher_touches_obstacle(self, physics) -> bool:
+        """Returns whether any teacher geom touches a wall, the table or the student."""
+        return robot_touches_obstacle(physics, self._teacher, self)
+
+
+def robot_touches_obstacle(physics, robot, task) -> bool:
+    """Returns whether any geom of ``robot`` touches a wall, the table or another robot."""
+    model = physics.model
+    body_root = model.body_rootid
+    robot_root = physics.bind(robot.root_body).element_id
+    table_root = physics.bind(task._table.mjcf_model.find("body", "table")).element_id
+    contact = physics.data.contact
+    for i in range(physics.data.ncon):
+        b1 = model.geom_bodyid[contact.geom1[i]]
+        b2 = model.geom_bodyid[contact.geom2[i]]
+        r1, r2 = body_root[b1], body_root[b2]
+        if robot_root not in (r1, r2):
+            continue
+        other_body = b2 if r1 == robot_root else b1
+        other_root = r2 if r1 == robot_root else r1
+        name = model.id2name(contact.geom2[i] if r1 == robot_root else contact.geom1[i], "geom") or ""
+        if other_root == 0 and name.startswith("wall"):
+            return True
+        if other_root == table_root:
+            return True
+        if other_root != 0 and other_root != robot_root and other_body != 0 and \
+                model.id2name(other_root, "body") in ("student/base", "teacher/base"):
+            return True
+    return False
+
+
+def load(config: TaskConfig | None = None, seed=None, **overrides) -> composer.Environment:
+    """Returns the imitation environment (a ``dm_env.Environment``).
+
+    Args:
+      config: the task configuration; keyword ``overrides`` replace its fields.
+      seed: seed of the environment's randomness (teacher start, jitter); one seed, one trajectory.
+    """
+    config = dataclasses.replace(config or TaskConfig(), **overrides)
+    task = ImitationTask(config)
+    return composer.Environment(task, random_state=seed, strip_singleton_obs_buffer_dim=True,
+                                raise_exception_on_physics_error=True)

@@ -1,0 +1,280 @@
+"""The scripted teacher: the paper's go-pick-lift loop (Elshaw et al., section III).
+
+The teacher acts only through the four motor directives the student will use, one per control step;
+physics moves it through its wheels. It reads its own pose (and the student's, to avoid it) from the
+simulator: it is the demonstrator, not a learner.
+
+- 'go' drives forward; reaching a wall (or the table, or the student) it turns away until its heading
+  is ``turn_away_deg`` (jittered) from the obstacle's direction, then takes its first step forward.
+- It switches to 'pick' near the docking target in front of the table at the middle of the top wall
+  when ``-45 < phi < 45`` deg (the paper's condition).
+- 'pick' docks: it lines up with the target, faces the table and drives in until it stands square to the
+  table in front of the object.
+- 'lift' backs away from the table, then turns to face the middle of the arena; then 'go' again.
+
+A watchdog ends any behaviour that makes no progress (no movement while driving, or a behaviour that
+lasts too long), logs it and recovers by backing off and turning away in 'go'.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from perception.wallframe import ArenaGeometry, world_to_wall, wrap_degrees
+
+#: The table's footprint, world frame, metres: x from -0.5 to 0.5, y from 1.6 to the top wall.
+TABLE_BOX = (-0.5, 0.5, 1.6, 2.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class TeacherConfig:
+    """The teacher's behaviour parameters (metres, degrees, seconds).
+
+    Attributes:
+      turn_radius_m: clearance the robot needs to turn in place (its farthest point, the gripper's
+        corner, is 0.39 m from its centre) plus a margin.
+      lookahead_m: extra clearance wanted straight ahead, scaled by the cosine of the obstacle's
+        bearing, so that a robot driving into a wall turns earlier than one passing along it.
+      turn_away_deg, turn_away_jitter_deg: after a turn the heading is this far from the obstacle's
+        direction (uniform jitter); 180 would reverse, 90 would run along the wall.
+      student_radius_m: the student is avoided as a disc of this radius.
+      pick_max_x_m, pick_max_abs_y_m, pick_max_abs_phi_deg: the 'pick' trigger, in the top wall's
+        frame (the paper: close to the target, -45 < phi < 45).
+      dock_x_m: docked distance of the robot's centre from the top wall: table depth 0.40 m, a 6 cm
+        gap, then the gripper's 0.365 m reach.
+      predock_gap_m: 'pick' lines up this far in front of the docked pose before driving in.
+      lateral_tol_m, heading_tol_deg, dock_heading_tol_deg: docking tolerances.
+      lift_backoff_m: 'lift' backs away this far from the docked pose.
+      face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
+      stuck_seconds, stuck_distance_m: the watchdog fires when a robot commanded to drive moves less
+        than ``stuck_distance_m`` in ``stuck_seconds``.
+      max_seconds: the watchdog also fires when one behaviour lasts longer than this.
+    """
+
+    turn_radius_m: float = 0.47
+    lookahead_m: float = 0.30
+    turn_away_deg: float = 130.0
+    turn_away_jitter_deg: float = 35.0
+    student_radius_m: float = 0.40
+    pick_max_x_m: float = 1.5
+    pick_max_abs_y_m: float = 0.9
+    pick_max_abs_phi_deg: float = 45.0
+    dock_x_m: float = 0.825
+    predock_gap_m: float = 0.45
+    lateral_tol_m: float = 0.05
+    heading_tol_deg: float = 10.0
+    dock_heading_tol_deg: float = 3.0
+    lift_backoff_m: float = 0.6
+    face_centre_tol_deg: float = 10.0
+    stuck_seconds: float = 4.0
+    stuck_distance_m: float = 0.05
+    max_seconds: dict = dataclasses.field(
+        default_factory=lambda: {"go": 240.0, "pick": 60.0, "lift": 30.0})
+
+
+@dataclasses.dataclass(frozen=True)
+class WatchdogEvent:
+    """A logged watchdog recovery: simulated time (s), behaviour, reason, teacher world pose."""
+
+    time_s: float
+    behaviour: str
+    reason: str
+    pose: tuple
+
+
+class Teacher:
+    """The go-pick-lift teacher as a state machine stepped once per control step.
+
+    Args:
+      config: behaviour parameters.
+      arena: the arena's geometry.
+      rng: seed or ``np.random.Generator`` for the jitter of turn angles and directions.
+    """
+
+    def __init__(self, config: TeacherConfig = TeacherConfig(), arena: ArenaGeometry = ArenaGeometry(),
+                 rng=None):
+        self.config = config
+        self.arena = arena
+        self.reset(rng)
+
+    # ------------------------------------------------------------------ state
+    def reset(self, rng=None) -> None:
+        """Starts a fresh 'go' behaviour."""
+        self._rng = np.random.default_rng(rng)
+        self.word = "go"
+        self.directive = "forward"
+        self.time_s = 0.0
+        self.cycles_completed = 0
+        self.events: list[WatchdogEvent] = []
+        self._enter("go", "drive")
+        self._turn_sign = 0.0
+        self._turn_target_deg = 0.0
+        self._obstacle_bearing = 0.0
+
+    def _enter(self, word: str, phase: str) -> None:
+        self.word = word
+        self.phase = phase
+        self._behaviour_start_s = getattr(self, "time_s", 0.0)
+        self._progress_anchor = None
+
+    @property
+    def dock_pose(self) -> tuple[float, float, float]:
+        """Returns the docked pose ``(x, y, yaw)``: world metres and radians, facing the table."""
+        return 0.0, self.arena.half_side_m - self.config.dock_x_m, math.pi / 2
+
+    # ------------------------------------------------------------------ geometry
+    def _obstacles(self, x, y, student):
+        """Yields ``(distance from the robot's centre to the obstacle's surface, bearing rad)``."""
+        h = self.arena.half_side_m
+        yield h - x, 0.0
+        yield h + x, math.pi
+        yield h - y, math.pi / 2
+        yield h + y, -math.pi / 2
+        x0, x1, y0, y1 = TABLE_BOX
+        px, py = min(max(x, x0), x1), min(max(y, y0), y1)
+        dx, dy = px - x, py - y
+        yield math.hypot(dx, dy), math.atan2(dy, dx)
+        if student is not None:
+            dx, dy = student[0] - x, student[1] - y
+            yield math.hypot(dx, dy) - self.config.student_radius_m, math.atan2(dy, dx)
+
+    def _blocking_obstacle(self, x, y, yaw, student):
+        """Returns the bearing of the most pressing obstacle the robot must turn away from, or None."""
+        c = self.config
+        worst, bearing = 0.0, None
+        for distance, b in self._obstacles(x, y, student):
+            need = c.turn_radius_m + c.lookahead_m * max(0.0, math.cos(b - yaw))
+            if distance < need and need - distance > worst:
+                worst, bearing = need - distance, b
+        return bearing
+
+    def _turn_towards(self, heading_error_deg: float) -> str:
+        return "turn_left" if heading_error_deg > 0 else "turn_right"
+
+    # ------------------------------------------------------------------ the loop
+    def step(self, pose, student_pose=None, dt: float = 0.1) -> str:
+        """Advances the teacher by one control step.
+
+        Args:
+          pose: the teacher's ``(x, y, yaw)``: world metres and radians.
+          student_pose: the student's ``(x, y, yaw)`` to avoid, or None.
+          dt: control period in seconds.
+
+        Returns:
+          The directive for this step (also in ``self.directive``; the word is ``self.word``).
+        """
+        x, y, yaw = (float(v) for v in pose)
+        self.time_s += dt
+        self._watchdog(x, y)
+        handler = {"go": self._go, "pick": self._pick, "lift": self._lift}[self.word]
+        self.directive = handler(x, y, yaw, student_pose)
+        return self.directive
+
+    def _start_turn_away(self, yaw, bearing):
+        c = self.config
+        relative = wrap_degrees(math.degrees(bearing - yaw))
+        if abs(relative) < 5.0:
+            self._turn_sign = float(self._rng.choice([-1.0, 1.0]))
+        else:
+            self._turn_sign = -1.0 if relative > 0 else 1.0
+        self._obstacle_bearing = bearing
+        jitter = self._rng.uniform(-c.turn_away_jitter_deg, c.turn_away_jitter_deg)
+        self._turn_target_deg = min(175.0, c.turn_away_deg + jitter)
+        self.phase = "turn_away"
+
+    def _go(self, x, y, yaw, student):
+        c = self.config
+        wall = world_to_wall(x, y, yaw, self.arena)
+        if (wall.wall == "top" and wall.x_m < c.pick_max_x_m and abs(wall.y_m) < c.pick_max_abs_y_m
+                and abs(wall.phi_deg) < c.pick_max_abs_phi_deg):
+            self._enter("pick", "line_up")
+            return self._pick(x, y, yaw, student)
+        if self.phase == "backoff":
+            if self.time_s - self._behaviour_start_s < 1.5:
+                return "backward"
+            self.phase = "drive"
+        bearing = self._blocking_obstacle(x, y, yaw, student)
+        if self.phase == "turn_away":
+            away = abs(wrap_degrees(math.degrees(yaw - self._obstacle_bearing)))
+            if away < self._turn_target_deg or bearing is not None:
+                if bearing is not None and away >= self._turn_target_deg:
+                    self._obstacle_bearing = bearing  # a corner: keep turning away from the next wall
+                return "turn_left" if self._turn_sign > 0 else "turn_right"
+            self.phase = "drive"
+            return "forward"
+        if bearing is not None:
+            self._start_turn_away(yaw, bearing)
+            return "turn_left" if self._turn_sign > 0 else "turn_right"
+        return "forward"
+
+    def _pick(self, x, y, yaw, student):
+        c = self.config
+        dock_x, dock_y, dock_yaw = self.dock_pose
+        heading_error = wrap_degrees(math.degrees(dock_yaw - yaw))
+        if self.phase == "line_up":
+            if abs(x - dock_x) <= c.lateral_tol_m and y <= dock_y:
+                self.phase = "face"
+            else:
+                gx, gy = dock_x, dock_y - c.predock_gap_m
+                if math.hypot(gx - x, gy - y) < 0.04:
+                    self.phase = "face"
+                else:
+                    error = wrap_degrees(math.degrees(math.atan2(gy - y, gx - x) - yaw))
+                    if abs(error) > c.heading_tol_deg:
+                        return self._turn_towards(error)
+                    return "forward"
+        if self.phase == "face":
+            if abs(heading_error) > c.dock_heading_tol_deg:
+                return self._turn_towards(heading_error)
+            self.phase = "approach"
+        if self.phase == "approach":
+            if y < dock_y - 0.015:
+                if abs(heading_error) > c.heading_tol_deg:
+                    return self._turn_towards(heading_error)
+                return "forward"
+            self.phase = "square"
+        # 'square': stand square to the table, then the pick is done.
+        if abs(heading_error) > c.dock_heading_tol_deg:
+            return self._turn_towards(heading_error)
+        self._enter("lift", "back")
+        return self._lift(x, y, yaw, student)
+
+    def _lift(self, x, y, yaw, student):
+        c = self.config
+        _, dock_y, _ = self.dock_pose
+        if self.phase == "back":
+            if y > dock_y - c.lift_backoff_m:
+                return "backward"
+            self.phase = "face_centre"
+            self._turn_sign = float(self._rng.choice([-1.0, 1.0]))
+        error = wrap_degrees(math.degrees(math.atan2(-y, -x) - yaw))
+        if abs(error) > c.face_centre_tol_deg:
+            return "turn_left" if self._turn_sign > 0 else "turn_right"
+        self.cycles_completed += 1
+        self._enter("go", "drive")
+        return "forward"
+
+    # ------------------------------------------------------------------ watchdog
+    def _watchdog(self, x, y):
+        c = self.config
+        elapsed = self.time_s - self._behaviour_start_s
+        reason = None
+        if elapsed > c.max_seconds[self.word]:
+            reason = f"'{self.word}' lasted over {c.max_seconds[self.word]:.0f} s"
+        elif self.directive in ("forward", "backward"):
+            if self._progress_anchor is None:
+                self._progress_anchor = (self.time_s, x, y)
+            else:
+                t0, x0, y0 = self._progress_anchor
+                if math.hypot(x - x0, y - y0) >= c.stuck_distance_m:
+                    self._progress_anchor = (self.time_s, x, y)
+                elif self.time_s - t0 > c.stuck_seconds:
+                    reason = f"moved under {c.stuck_distance_m} m in {c.stuck_seconds} s while driving"
+        else:
+            self._progress_anchor = None
+        if reason is not None:
+            self.events.append(WatchdogEvent(self.time_s, self.word, reason, (x, y)))
+            self._enter("go", "backoff")
