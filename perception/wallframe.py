@@ -16,6 +16,7 @@ Points exactly on a diagonal belong to the first of their walls in ``WALL_NAMES`
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -28,6 +29,9 @@ _NORMALS = {
     "bottom": (0.0, -1.0),
     "left": (-1.0, 0.0),
 }
+
+
+_FACING_DEG = {w: math.degrees(math.atan2(n[1], n[0])) for w, n in _NORMALS.items()}
 
 
 def wrap_degrees(angle_deg):
@@ -76,8 +80,13 @@ def _check_wall(wall: str) -> None:
 
 def nearest_wall(x_world: float, y_world: float) -> str:
     """Returns the name of the wall whose diagonal area holds the world point (metres)."""
-    scores = [x_world * nx + y_world * ny for nx, ny in (_NORMALS[w] for w in WALL_NAMES)]
-    return WALL_NAMES[int(np.argmax(scores))]
+    best, best_score = WALL_NAMES[0], -math.inf
+    for wall in WALL_NAMES:
+        nx, ny = _NORMALS[wall]
+        score = x_world * nx + y_world * ny
+        if score > best_score:
+            best, best_score = wall, score
+    return best
 
 
 def world_to_wall(
@@ -92,8 +101,8 @@ def world_to_wall(
       arena: the arena's geometry.
       wall: force this wall's frame instead of the nearest one.
     """
-    values = (x_world, y_world, yaw_rad)
-    if not np.all(np.isfinite(values)):
+    x_world, y_world, yaw_rad = float(x_world), float(y_world), float(yaw_rad)
+    if not (math.isfinite(x_world) and math.isfinite(y_world) and math.isfinite(yaw_rad)):
         raise ValueError(f"pose must be finite, got x={x_world!r}, y={y_world!r}, yaw={yaw_rad!r}")
     if wall is None:
         wall = nearest_wall(x_world, y_world)
@@ -103,9 +112,31 @@ def world_to_wall(
     tx, ty = ny, -nx
     x_m = arena.half_side_m - (x_world * nx + y_world * ny)
     y_m = x_world * tx + y_world * ty
-    facing_deg = np.degrees(np.arctan2(ny, nx))
-    phi_deg = float(wrap_degrees(np.degrees(yaw_rad) - facing_deg))
-    return WallPose(float(x_m), float(y_m), phi_deg, wall)
+    phi_deg = (math.degrees(yaw_rad) - _FACING_DEG[wall] + 180.0) % 360.0 - 180.0
+    return WallPose(x_m, y_m, phi_deg, wall)
+
+
+def world_to_wall_batch(
+    x_world, y_world, yaw_rad, arena: ArenaGeometry = ArenaGeometry()
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Vectorised ``world_to_wall`` over arrays of shape (n,).
+
+    Returns:
+      ``x_m, y_m, phi_deg`` (float arrays, shape (n,)) and the wall index into ``WALL_NAMES`` (int).
+    """
+    x = np.asarray(x_world, dtype=float)
+    y = np.asarray(y_world, dtype=float)
+    yaw = np.asarray(yaw_rad, dtype=float)
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y)) and np.all(np.isfinite(yaw))):
+        raise ValueError("poses must be finite")
+    normals = np.array([_NORMALS[w] for w in WALL_NAMES])
+    wall = np.argmax(x[:, None] * normals[:, 0] + y[:, None] * normals[:, 1], axis=1)
+    nx, ny = normals[wall, 0], normals[wall, 1]
+    x_m = arena.half_side_m - (x * nx + y * ny)
+    y_m = x * ny - y * nx
+    facing = np.array([_FACING_DEG[w] for w in WALL_NAMES])[wall]
+    phi = wrap_degrees(np.degrees(yaw) - facing)
+    return x_m, y_m, phi, wall
 
 
 def wall_to_world(

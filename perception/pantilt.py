@@ -1,0 +1,190 @@
+"""The student's pan-tilt head camera (Canon VC-C4): where it looks, keeping the teacher centred.
+
+Conventions (also what ``peoplebot_sim`` uses to pose the rendered head camera):
+
+- ``pan_deg``: rotation of the head about the robot's z axis, degrees; 0 looks along the robot's +x
+  (forward), positive turns to the robot's left (counter-clockwise seen from above).
+- ``tilt_deg``: elevation of the optical axis above the horizontal, degrees; positive looks up.
+- The optical centre sits at ``HeadMount.position_m`` in the robot frame for every pan and tilt (the
+  small offset of the lens from the pan-tilt axes is neglected); the image has no roll.
+
+:func:`head_camera` turns the observer's planar world pose and the head angles into a posed
+:class:`~perception.camera.PinholeCamera`, the extrinsics the head-camera pipeline needs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from perception.camera import PinholeCamera
+from perception.layout import SIDE_MARKER_HEIGHT_M
+from perception.pose import robot_to_world
+from perception.wallframe import wrap_degrees
+
+
+@dataclasses.dataclass(frozen=True)
+class PanTiltLimits:
+    """Mechanical limits of the head, degrees and degrees per second (Canon VC-C4 defaults)."""
+
+    pan_min_deg: float = -98.0
+    pan_max_deg: float = 98.0
+    tilt_min_deg: float = -30.0
+    tilt_max_deg: float = 88.0
+    pan_rate_deg_s: float = 90.0
+    tilt_rate_deg_s: float = 70.0
+
+    def __post_init__(self):
+        values = dataclasses.astuple(self)
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"pan-tilt limits must be finite, got {self!r}")
+        if not -180.0 < self.pan_min_deg < self.pan_max_deg < 180.0:
+            raise ValueError(
+                f"need -180 < pan_min_deg < pan_max_deg < 180, got "
+                f"{self.pan_min_deg}, {self.pan_max_deg}"
+            )
+        if not -90.0 <= self.tilt_min_deg < self.tilt_max_deg <= 90.0:
+            raise ValueError(
+                f"need -90 <= tilt_min_deg < tilt_max_deg <= 90, got "
+                f"{self.tilt_min_deg}, {self.tilt_max_deg}"
+            )
+        if self.pan_rate_deg_s <= 0 or self.tilt_rate_deg_s <= 0:
+            raise ValueError(
+                f"rates must be > 0 deg/s, got {self.pan_rate_deg_s}, {self.tilt_rate_deg_s}"
+            )
+
+
+@dataclasses.dataclass(frozen=True)
+class HeadMount:
+    """Where the head's optical centre sits in the robot frame, metres (x forward, y left, z up)."""
+
+    position_m: tuple[float, float, float] = (0.15, 0.0, 1.20)
+
+
+def head_camera_rotation(yaw_rad: float, pan_deg: float, tilt_deg: float) -> np.ndarray:
+    """Returns ``rotation_world_from_camera`` (OpenCV axes) of the head on a robot with heading
+    ``yaw_rad``."""
+    azimuth = yaw_rad + np.radians(pan_deg)
+    elevation = np.radians(tilt_deg)
+    z = np.array(
+        [
+            np.cos(elevation) * np.cos(azimuth),
+            np.cos(elevation) * np.sin(azimuth),
+            np.sin(elevation),
+        ]
+    )
+    x = np.array([np.sin(azimuth), -np.cos(azimuth), 0.0])
+    y = np.cross(z, x)
+    return np.column_stack([x, y, z])
+
+
+def head_position_world(observer_pose, mount: HeadMount = HeadMount()) -> np.ndarray:
+    """Returns the head's optical centre in the world, metres, shape (3,), for ``(x_m, y_m,
+    yaw_rad)``."""
+    rotation, position = robot_to_world(*observer_pose)
+    return rotation @ np.asarray(mount.position_m, dtype=float) + position
+
+
+def head_camera(
+    intrinsics: PinholeCamera,
+    observer_pose,
+    pan_deg: float,
+    tilt_deg: float,
+    mount: HeadMount = HeadMount(),
+) -> PinholeCamera:
+    """Returns ``intrinsics`` posed as the head camera of a robot at ``observer_pose`` (x_m, y_m,
+    yaw_rad)."""
+    values = (*observer_pose, pan_deg, tilt_deg)
+    if len(values) != 5 or not np.all(np.isfinite(values)):
+        raise ValueError(
+            f"observer_pose must be 3 finite numbers and pan/tilt finite, got {values!r}"
+        )
+    return intrinsics.with_pose(
+        head_camera_rotation(observer_pose[2], pan_deg, tilt_deg),
+        head_position_world(observer_pose, mount),
+    )
+
+
+def aim_at(observer_pose, target_world, mount: HeadMount = HeadMount()) -> tuple[float, float]:
+    """Returns the unlimited ``(pan_deg, tilt_deg)`` that centre ``target_world`` (x, y, z metres).
+
+    Pan is wrapped to [-180, 180).
+    """
+    head = head_position_world(observer_pose, mount)
+    d = np.asarray(target_world, dtype=float) - head
+    horizontal = float(np.hypot(d[0], d[1]))
+    pan = float(wrap_degrees(np.degrees(np.arctan2(d[1], d[0]) - observer_pose[2])))
+    tilt = float(np.degrees(np.arctan2(d[2], horizontal)))
+    return pan, tilt
+
+
+@dataclasses.dataclass(frozen=True)
+class PanTiltCommand:
+    """One control step.
+
+    Attributes:
+      pan_deg, tilt_deg: the commanded head angles, within the limits and the rate limits.
+      target_pan_deg, target_tilt_deg: the angles that would centre the target (unlimited); None
+        when there was no target.
+      reachable: True when the target angles lie within the mechanical limits.
+    """
+
+    pan_deg: float
+    tilt_deg: float
+    target_pan_deg: float | None
+    target_tilt_deg: float | None
+    reachable: bool
+
+
+class PanTiltController:
+    """Keeps a target (the teacher) centred in the head camera, within the VC-C4's limits and rates.
+
+    Args:
+      limits: mechanical limits.
+      mount: where the head sits on the robot.
+      target_height_m: height of the point to centre on the target robot (default: the side
+        markers').
+      initial_pan_deg, initial_tilt_deg: the head's starting angles.
+    """
+
+    def __init__(
+        self,
+        limits: PanTiltLimits = PanTiltLimits(),
+        mount: HeadMount = HeadMount(),
+        *,
+        target_height_m: float = SIDE_MARKER_HEIGHT_M,
+        initial_pan_deg: float = 0.0,
+        initial_tilt_deg: float = 0.0,
+    ):
+        self.limits = limits
+        self.mount = mount
+        self.target_height_m = float(target_height_m)
+        self.pan_deg_ = float(np.clip(initial_pan_deg, limits.pan_min_deg, limits.pan_max_deg))
+        self.tilt_deg_ = float(np.clip(initial_tilt_deg, limits.tilt_min_deg, limits.tilt_max_deg))
+
+    def step(self, observer_pose, target_xy, dt_s: float) -> PanTiltCommand:
+        """Moves the head towards centring ``target_xy`` for ``dt_s`` seconds; returns the command.
+
+        Args:
+          observer_pose: the student's own ``(x_m, y_m, yaw_rad)``, world frame.
+          target_xy: the tracked teacher position ``(x_m, y_m)``, world frame, or None (hold still).
+          dt_s: control period, seconds (> 0).
+        """
+        if not np.isfinite(dt_s) or dt_s <= 0:
+            raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+        if target_xy is None:
+            return PanTiltCommand(self.pan_deg_, self.tilt_deg_, None, None, False)
+        lim = self.limits
+        target = (float(target_xy[0]), float(target_xy[1]), self.target_height_m)
+        pan, tilt = aim_at(observer_pose, target, self.mount)
+        reachable = (
+            lim.pan_min_deg <= pan <= lim.pan_max_deg
+            and lim.tilt_min_deg <= tilt <= lim.tilt_max_deg
+        )
+        goal_pan = float(np.clip(pan, lim.pan_min_deg, lim.pan_max_deg))
+        goal_tilt = float(np.clip(tilt, lim.tilt_min_deg, lim.tilt_max_deg))
+        max_pan, max_tilt = lim.pan_rate_deg_s * dt_s, lim.tilt_rate_deg_s * dt_s
+        self.pan_deg_ += float(np.clip(goal_pan - self.pan_deg_, -max_pan, max_pan))
+        self.tilt_deg_ += float(np.clip(goal_tilt - self.tilt_deg_, -max_tilt, max_tilt))
+        return PanTiltCommand(self.pan_deg_, self.tilt_deg_, pan, tilt, reachable)

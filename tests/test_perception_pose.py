@@ -1,0 +1,90 @@
+"""Robot planar pose and the Tracker pipeline on synthetic images with constructed ground truth."""
+
+import numpy as np
+import pytest
+
+from perception.camera import PinholeCamera, look_at_rotation
+from perception.markers import MarkerDetector
+from perception.pantilt import aim_at, head_camera
+from perception.pipeline import Tracker
+from perception.pose import estimate_robot_pose, wrap_radians
+from perception.synthetic import render_markers
+from perception.wallframe import world_to_wall
+
+
+def overhead_camera():
+    rotation = look_at_rotation((0.0, 0.0, 4.9), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    return PinholeCamera.from_fovy(320, 240, 40.0, rotation, (0.0, 0.0, 4.9))
+
+
+def test_overhead_planar_pose_within_a_centimetre_and_a_degree():
+    rng = np.random.default_rng(11)
+    camera = overhead_camera()
+    detector = MarkerDetector(camera=camera)
+    xy_errors, yaw_errors = [], []
+    for _ in range(30):
+        truth = (rng.uniform(-1.5, 1.5), rng.uniform(-1.0, 1.0), rng.uniform(-np.pi, np.pi))
+        image = render_markers(camera, {"teacher": truth}, faces=("top",))
+        estimate = estimate_robot_pose(detector.detect(image), camera, "teacher")
+        assert estimate is not None and estimate.marker_ids == (0,)
+        xy_errors.append(np.hypot(estimate.x_m - truth[0], estimate.y_m - truth[1]))
+        yaw_errors.append(abs(np.degrees(wrap_radians(estimate.yaw_rad - truth[2]))))
+        assert estimate.reprojection_error_px < 1.0
+        assert np.all(np.isfinite(estimate.covariance))
+        expected_wall = world_to_wall(*truth)
+        assert estimate.wall.wall == expected_wall.wall or abs(abs(truth[0]) - abs(truth[1])) < 0.02
+    assert np.max(xy_errors) < 0.01
+    assert np.median(yaw_errors) < 0.5 and np.max(yaw_errors) < 1.5
+
+
+def test_head_camera_pose_from_side_markers():
+    rng = np.random.default_rng(12)
+    intrinsics = PinholeCamera.from_fovx(320, 240, 45.0)
+    detector = MarkerDetector()
+    xy_errors, yaw_errors = [], []
+    for _ in range(15):
+        observer = (rng.uniform(-1, 0), rng.uniform(-1, 1), rng.uniform(-np.pi, np.pi))
+        distance, bearing = rng.uniform(1.0, 3.0), rng.uniform(-0.3, 0.3) + observer[2]
+        teacher = (
+            observer[0] + distance * np.cos(bearing),
+            observer[1] + distance * np.sin(bearing),
+            float(wrap_radians(bearing + rng.uniform(-1.0, 1.0))),  # mostly facing away
+        )
+        pan, tilt = aim_at(observer, (teacher[0], teacher[1], 0.72))
+        camera = head_camera(intrinsics, observer, pan, tilt)
+        image = render_markers(camera, {"teacher": teacher})
+        estimate = estimate_robot_pose(detector.detect(image, camera), camera, "teacher")
+        assert estimate is not None
+        xy_errors.append(np.hypot(estimate.x_m - teacher[0], estimate.y_m - teacher[1]))
+        yaw_errors.append(abs(np.degrees(wrap_radians(estimate.yaw_rad - teacher[2]))))
+    assert np.median(xy_errors) < 0.02 and np.max(xy_errors) < 0.06
+    assert np.median(yaw_errors) < 1.5 and np.max(yaw_errors) < 5.0
+
+
+def test_pose_needs_a_known_robot_and_returns_none_when_unseen():
+    camera = overhead_camera()
+    assert estimate_robot_pose((), camera, "teacher") is None
+    with pytest.raises(ValueError, match="unknown robot"):
+        estimate_robot_pose((), camera, "butler")
+
+
+def test_tracker_overhead_reports_both_robots_and_tracks():
+    camera = overhead_camera()
+    tracker = Tracker()
+    poses = {"teacher": (0.5, -0.3, 1.0), "student": (-1.2, 0.6, -0.5)}
+    image = render_markers(camera, poses)
+    frame = tracker.estimate(image, camera)
+    assert set(frame.poses) == {"teacher", "student"}
+    for robot, truth in poses.items():
+        assert np.hypot(frame.poses[robot].x_m - truth[0], frame.poses[robot].y_m - truth[1]) < 0.01
+        assert 0 in frame.visible_ids("teacher") or robot == "student"
+    out = tracker.update(image, camera, 0.0)
+    assert out["teacher"].track.status == "seen" and out["teacher"].wall is not None
+    empty = np.full_like(image, 90)
+    out = tracker.update(empty, camera, 0.1)
+    assert out["teacher"].track.status == "predicted" and out["teacher"].measurement is None
+    out = tracker.update(empty, camera, 5.0)
+    assert out["teacher"].track.status == "lost" and out["teacher"].track.pose is None
+    assert out["teacher"].wall is None
+    with pytest.raises(ValueError, match="unknown robots"):
+        tracker.update(image, camera, 5.1, robots=("butler",))
