@@ -59,20 +59,20 @@ class TeacherConfig:
     turn_away_deg: float = 130.0
     turn_away_jitter_deg: float = 35.0
     student_radius_m: float = 0.40
-    pick_max_x_m: float = 1.5
-    pick_max_abs_y_m: float = 0.9
+    pick_max_x_m: float = 1.6
+    pick_max_abs_y_m: float = 1.2
     pick_max_abs_phi_deg: float = 45.0
     dock_x_m: float = 0.825
     predock_gap_m: float = 0.45
     lateral_tol_m: float = 0.05
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
-    lift_backoff_m: float = 0.6
+    lift_backoff_m: float = 0.9
     face_centre_tol_deg: float = 10.0
     stuck_seconds: float = 4.0
     stuck_distance_m: float = 0.05
     max_seconds: dict = dataclasses.field(
-        default_factory=lambda: {"go": 240.0, "pick": 60.0, "lift": 30.0})
+        default_factory=lambda: {"go": 900.0, "pick": 60.0, "lift": 30.0})
 
 
 @dataclasses.dataclass(frozen=True)
