@@ -1,0 +1,575 @@
+"""The associator network of Elshaw et al. (section III): a Helmholtz machine with a competitive,
+smoothed-localist hidden code, trained by a modified wake-sleep algorithm.
+
+Shapes: ``z`` has 180 input units (see ``associator.encoding``), the hidden layer is a 16 x 48 grid
+of 768 units numbered row-major, ``W_bu_`` is (768, 180) and ``W_td_`` is (180, 768).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import NamedTuple
+
+import numpy as np
+
+from associator import encoding
+from associator.encoding import (
+    DIRECTIVES,
+    LANGUAGE_SLICE,
+    MOTOR_SLICE,
+    N_INPUT,
+    N_LANGUAGE,
+    N_MOTOR,
+    N_VISION,
+    VISION_SLICE,
+    WORDS,
+)
+
+SLEEP_SIGNS = ("self_organising", "printed")
+DTYPES = ("float32", "float64")
+
+
+class Recognition(NamedTuple):
+    """What the network recognises from vision and motor input.
+
+    Attributes:
+      word: the vocabulary word with the highest score.
+      scores: cosine similarity of the reconstructed language area with each vocabulary word's
+        code, shape (n_words,), in ``vocabulary`` order.
+      hidden: the competitive hidden code r^c, shape (768,) (row-major 16 x 48 grid).
+    """
+
+    word: str
+    scores: np.ndarray
+    hidden: np.ndarray
+
+
+class Performance(NamedTuple):
+    """What the network does given vision and a word.
+
+    Attributes:
+      directive: the motor directive with the strongest reconstructed activation.
+      motor: the reconstructed motor area, shape (4,) in ``DIRECTIVES`` order, >= 0 (graded).
+      hidden: the competitive hidden code r^c, shape (768,).
+    """
+
+    directive: str
+    motor: np.ndarray
+    hidden: np.ndarray
+
+
+class BatchRecognition(NamedTuple):
+    """Recognition of ``n`` samples: ``words`` (n,) str, ``scores`` (n, n_words), ``winners`` (n,)
+    hidden winner indices (``Associator.hidden_code`` turns them into r^c)."""
+
+    words: np.ndarray
+    scores: np.ndarray
+    winners: np.ndarray
+
+
+class BatchPerformance(NamedTuple):
+    """Performance of ``n`` samples: ``directives`` (n,) str, ``motor`` (n, 4), ``winners`` (n,)."""
+
+    directives: np.ndarray
+    motor: np.ndarray
+    winners: np.ndarray
+
+
+@dataclasses.dataclass(frozen=True)
+class _Window:
+    """The truncated envelope around one hidden unit: a rectangle of the grid and its weights."""
+
+    rows: slice
+    cols: slice
+    weights: np.ndarray  # (n_rows, n_cols, 1)
+
+
+class Associator:
+    """The associator network, in the scikit-learn shape.
+
+    Parameters
+    ----------
+    hidden_shape : (int, int)
+        Rows and columns of the hidden grid (paper: 16 x 48).
+    eta : float
+        Wake (top-down) learning rate (paper: 0.001).
+    epsilon : float
+        Sleep (bottom-up) learning rate (paper: 0.01).
+    motor_change_boost : float
+        Factor on ``eta`` for samples whose active motor unit changed (paper: 5).
+    envelope_sigma : float
+        Standard deviation in grid units of the Gaussian envelope of the competitive code, in wake
+        and sleep alike. Not given in the paper; 1.0 keeps neighbouring units correlated while the
+        3 x 16 x 48 map still has room for three word regions, and is the width with which the
+        self-organising sleep sign was checked.
+    envelope_cutoff : float
+        The envelope is zero beyond ``ceil(envelope_cutoff * envelope_sigma)`` units along either
+        grid axis (a square window; 3 -> 7 x 7 units for sigma 1). The largest value dropped is
+        ``exp(-(h + 1)**2 / (2 sigma**2))`` with h that half-width: 3.4e-4 for the defaults.
+    decay_fraction : float
+        Both rates fall linearly to zero over this last fraction of ``n_steps_total`` (paper: 1/4).
+    n_steps_total : int
+        Planned number of training samples; the rate schedule depends on the step count against it,
+        so chunked training equals one call. After it, rates are zero.
+    sleep_sign : {"self_organising", "printed"}
+        ``"self_organising"``: dW_bu = epsilon (z^s - w) r~^c, moving weights towards the dream
+        (default, see the package notes for the evidence); ``"printed"``: the paper's printed
+        epsilon (w - z^s) r~^c.
+    sleeps_per_wake : int
+        Sleep phases after each wake phase (the paper alternates; default 1).
+    init_scale : float
+        W_td starts uniform in [0, init_scale); W_bu starts uniform in [0, 1) with unit-length rows.
+        Small top-down weights let the first wake phases, not the initial noise, shape the map.
+    vocabulary : tuple of str
+        Words whose codes recognition compares with (default ``WORDS``).
+    dtype : {"float32", "float64"}
+        Precision of the weights. float32 (default) is twice as fast; float64 is for checks.
+    rng : None, int or numpy.random.Generator
+        Source of the initial weights and of the sleep phases' random hidden positions.
+    """
+
+    def __init__(
+        self,
+        *,
+        hidden_shape: tuple[int, int] = (16, 48),
+        eta: float = 0.001,
+        epsilon: float = 0.01,
+        motor_change_boost: float = 5.0,
+        envelope_sigma: float = 1.0,
+        envelope_cutoff: float = 3.0,
+        decay_fraction: float = 0.25,
+        n_steps_total: int = 1_000_000,
+        sleep_sign: str = "self_organising",
+        sleeps_per_wake: int = 1,
+        init_scale: float = 0.01,
+        vocabulary: tuple[str, ...] = WORDS,
+        dtype: str = "float32",
+        rng=None,
+    ):
+        self.hidden_shape = hidden_shape
+        self.eta = eta
+        self.epsilon = epsilon
+        self.motor_change_boost = motor_change_boost
+        self.envelope_sigma = envelope_sigma
+        self.envelope_cutoff = envelope_cutoff
+        self.decay_fraction = decay_fraction
+        self.n_steps_total = n_steps_total
+        self.sleep_sign = sleep_sign
+        self.sleeps_per_wake = sleeps_per_wake
+        self.init_scale = init_scale
+        self.vocabulary = vocabulary
+        self.dtype = dtype
+        self.rng = rng
+
+    # ------------------------------------------------------------------------------------------
+    # Hyper-parameters
+
+    def get_params(self) -> dict:
+        """Returns the hyper-parameters as a dict (``rng`` excluded: its state is learned state)."""
+        return {
+            "hidden_shape": tuple(int(v) for v in self.hidden_shape),
+            "eta": float(self.eta),
+            "epsilon": float(self.epsilon),
+            "motor_change_boost": float(self.motor_change_boost),
+            "envelope_sigma": float(self.envelope_sigma),
+            "envelope_cutoff": float(self.envelope_cutoff),
+            "decay_fraction": float(self.decay_fraction),
+            "n_steps_total": int(self.n_steps_total),
+            "sleep_sign": str(self.sleep_sign),
+            "sleeps_per_wake": int(self.sleeps_per_wake),
+            "init_scale": float(self.init_scale),
+            "vocabulary": tuple(self.vocabulary),
+            "dtype": str(self.dtype),
+        }
+
+    def _validate_params(self) -> None:
+        shape = self.hidden_shape
+        if (
+            not isinstance(shape, (tuple, list))
+            or len(shape) != 2
+            or not all(isinstance(v, (int, np.integer)) and v > 0 for v in shape)
+        ):
+            raise ValueError(f"hidden_shape must be two positive ints, got {shape!r}")
+        for name in ("eta", "epsilon", "init_scale", "envelope_sigma", "envelope_cutoff"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        boost = self.motor_change_boost
+        if not (isinstance(boost, (int, float)) and np.isfinite(boost) and boost >= 1):
+            raise ValueError(f"motor_change_boost must be a finite number >= 1, got {boost!r}")
+        fraction = self.decay_fraction
+        if not (isinstance(fraction, (int, float)) and 0 <= fraction <= 1):
+            raise ValueError(f"decay_fraction must be in [0, 1], got {fraction!r}")
+        for name in ("n_steps_total", "sleeps_per_wake"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, np.integer)) and value >= 1):
+                raise ValueError(f"{name} must be an int >= 1, got {value!r}")
+        if self.sleep_sign not in SLEEP_SIGNS:
+            raise ValueError(f"unknown sleep_sign {self.sleep_sign!r}; allowed: {SLEEP_SIGNS}")
+        if self.dtype not in DTYPES:
+            raise ValueError(f"unknown dtype {self.dtype!r}; allowed: {DTYPES}")
+        vocabulary = self.vocabulary
+        if isinstance(vocabulary, str) or len(vocabulary) < 1:
+            raise ValueError(
+                f"vocabulary must be a non-empty sequence of words, got {vocabulary!r}"
+            )
+        if len(set(vocabulary)) != len(vocabulary):
+            raise ValueError(f"vocabulary has repeated words: {vocabulary!r}")
+
+    # ------------------------------------------------------------------------------------------
+    # Learned state
+
+    @property
+    def W_bu_(self) -> np.ndarray:  # noqa: N802 (the paper's name)
+        """Bottom-up weights, shape (768, 180): row j is hidden unit j's input weights."""
+        return self._w_bu.reshape(self.n_hidden, N_INPUT)
+
+    @property
+    def W_td_(self) -> np.ndarray:  # noqa: N802
+        """Top-down weights, shape (180, 768) (a transposed view of the (768, 180) storage)."""
+        return self._w_td_t.reshape(self.n_hidden, N_INPUT).T
+
+    @property
+    def n_hidden(self) -> int:
+        """Returns the number of hidden units (768 for the paper's grid)."""
+        return int(self.hidden_shape[0]) * int(self.hidden_shape[1])
+
+    def _check_fitted(self) -> None:
+        if not hasattr(self, "_w_bu"):
+            raise ValueError("this Associator is not fitted yet; call fit or partial_fit first")
+
+    def _initialise(self) -> None:
+        """Draws the initial weights and computes the vocabulary codes and envelope tables."""
+        self._validate_params()
+        self.rng_ = np.random.default_rng(self.rng)
+        rows, cols = self.hidden_shape
+        dtype = np.dtype(self.dtype)
+        w_bu = self.rng_.random((rows, cols, N_INPUT))
+        w_bu /= np.linalg.norm(w_bu, axis=2, keepdims=True)
+        w_td_t = self.init_scale * self.rng_.random((rows, cols, N_INPUT))
+        self._set_state(w_bu.astype(dtype), w_td_t.astype(dtype), 0, None)
+
+    def _set_state(self, w_bu3, w_td_t3, n_steps, rng_state) -> None:
+        """Installs learned state (also used by persistence)."""
+        self._validate_params()
+        self._w_bu = np.ascontiguousarray(w_bu3)
+        self._w_td_t = np.ascontiguousarray(w_td_t3)
+        self.n_steps_ = int(n_steps)
+        if rng_state is not None:
+            self.rng_ = rng_state
+        self.vocabulary_codes_ = encoding.encode_words(list(self.vocabulary))
+        self._build_windows()
+        self._tables = None
+
+    def _build_windows(self) -> None:
+        rows, cols = self.hidden_shape
+        sigma = float(self.envelope_sigma)
+        half = int(np.ceil(self.envelope_cutoff * sigma))
+        dtype = np.dtype(self.dtype)
+        self._windows = []
+        envelope = np.zeros((rows * cols, rows, cols))
+        for k in range(rows * cols):
+            r, c = divmod(k, cols)
+            r0, r1 = max(r - half, 0), min(r + half + 1, rows)
+            c0, c1 = max(c - half, 0), min(c + half + 1, cols)
+            dr = np.arange(r0, r1) - r
+            dc = np.arange(c0, c1) - c
+            g = np.exp(-0.5 * (dr[:, None] ** 2 + dc[None, :] ** 2) / sigma**2)
+            self._windows.append(_Window(slice(r0, r1), slice(c0, c1), g[..., None].astype(dtype)))
+            envelope[k, r0:r1, c0:c1] = g
+        self._envelope = envelope.reshape(rows * cols, rows * cols).astype(dtype)
+
+    def hidden_code(self, winners) -> np.ndarray:
+        """Returns the competitive codes r^c of winning units, shape (n, 768) ((768,) for one)."""
+        self._check_fitted()
+        return self._envelope[winners].astype(float)
+
+    def learning_rate_factor(self, step: int) -> float:
+        """Returns the schedule factor on both rates at a step: 1, then linearly to 0 over the last
+        ``decay_fraction`` of ``n_steps_total``, 0 from ``n_steps_total`` on."""
+        total = float(self.n_steps_total)
+        remaining = total - step
+        if remaining <= 0:
+            return 0.0
+        decay = self.decay_fraction * total
+        if decay <= 0 or remaining >= decay:
+            return 1.0
+        return remaining / decay
+
+    # ------------------------------------------------------------------------------------------
+    # Training
+
+    def fit(self, vision, language, motor, motor_changed=None) -> Associator:
+        """Initialises the weights and trains on a stream; see ``partial_fit``. Returns self."""
+        self._initialise()
+        return self.partial_fit(vision, language, motor, motor_changed)
+
+    def partial_fit(self, vision, language, motor, motor_changed=None) -> Associator:
+        """Trains on ``n`` consecutive samples, one wake and ``sleeps_per_wake`` sleep phases each.
+
+        Parameters
+        ----------
+        vision : array, shape (n, 96)
+        language : array, shape (n, 80)
+        motor : array, shape (n, 4)
+        motor_changed : bool array, shape (n,), or None
+            Whether the teacher's active motor unit changed at each sample (the wake rate is then
+            ``motor_change_boost`` times larger). None: all False.
+
+        Returns
+        -------
+        self
+        """
+        z = encoding.assemble(vision, language, motor)
+        n = z.shape[0]
+        if motor_changed is None:
+            changed = np.zeros(n, dtype=bool)
+        else:
+            changed = np.asarray(motor_changed)
+            if changed.shape != (n,) or changed.dtype != bool:
+                raise ValueError(
+                    f"motor_changed must be a bool array of shape ({n},), got "
+                    f"{changed.dtype} {changed.shape}"
+                )
+        if not hasattr(self, "_w_bu"):
+            self._initialise()
+        self._validate_params()
+        self._train(z, changed)
+        self._tables = None
+        return self
+
+    def _train(self, z: np.ndarray, changed: np.ndarray) -> None:
+        """The modified wake-sleep loop, touching only the units under the truncated envelope.
+
+        Wake (per sample): r = W_bu z, winner k = argmax r, r^c = envelope(k),
+        z~ = W_td r^c, dW_td = eta' r^c (z - z~), then W_td >= 0.
+        Sleep: r^s = envelope(random unit), z^s = W_td r^s, r~ = W_bu z^s,
+        r~^c = envelope(argmax r~),
+        dW_bu = +-epsilon' r~^c (z^s - W_bu), then W_bu >= 0 and unit-length rows.
+        """
+        if self.sleep_sign == "self_organising" and self.sleeps_per_wake == 1:
+            self._train_fast(z, changed)
+        else:
+            self._train_general(z, changed)
+        self.n_steps_ += z.shape[0]
+
+    def _draw_dreams(self, n: int) -> np.ndarray:
+        """Returns the random hidden centres of the sleep phases, shape (n, sleeps_per_wake).
+
+        One double per sleep phase, drawn up front: the generator's stream is then the same for any
+        split of the samples into calls.
+        """
+        n_hidden = self.n_hidden
+        u = self.rng_.random((n, int(self.sleeps_per_wake)))
+        return np.minimum((u * n_hidden).astype(np.int64), n_hidden - 1)
+
+    def _train_general(self, z: np.ndarray, changed: np.ndarray) -> None:
+        """Any sleep sign and number of sleeps: straightforward per-phase updates on the windows."""
+        dtype = self._w_bu.dtype
+        n = z.shape[0]
+        w_bu3, w_td3 = self._w_bu, self._w_td_t
+        w_bu2 = w_bu3.reshape(self.n_hidden, N_INPUT)
+        windows = self._windows
+        dreams = self._draw_dreams(n)
+        zc = z.astype(dtype)
+        sign = 1.0 if self.sleep_sign == "self_organising" else -1.0
+        eta, epsilon, boost = float(self.eta), float(self.epsilon), float(self.motor_change_boost)
+        for t in range(n):
+            factor = self.learning_rate_factor(self.n_steps_ + t)
+            if factor == 0.0:
+                continue
+            zt = zc[t]
+            win = windows[int(np.argmax(w_bu2 @ zt))]
+            block = w_td3[win.rows, win.cols]
+            recon = np.einsum("abi,abj->j", win.weights, block)
+            rate = eta * factor * (boost if changed[t] else 1.0)
+            block += (rate * win.weights) * (zt - recon)
+            np.maximum(block, 0, out=block)
+            for dream_centre in dreams[t]:
+                dream = windows[dream_centre]
+                z_sleep = np.einsum("abi,abj->j", dream.weights, w_td3[dream.rows, dream.cols])
+                win = windows[int(np.argmax(w_bu2 @ z_sleep))]
+                block = w_bu3[win.rows, win.cols]
+                block += (sign * epsilon * factor * win.weights) * (z_sleep - block)
+                np.maximum(block, 0, out=block)
+                norm = np.sqrt(np.einsum("abi,abi->ab", block, block))[..., None]
+                block /= np.maximum(norm, np.finfo(dtype).tiny)
+
+    def _train_fast(self, z: np.ndarray, changed: np.ndarray) -> None:
+        """The default case (self-organising sign, one sleep per wake) with fewer passes.
+
+        Equal to ``_train_general`` up to rounding: the sleep's product W_bu z^s and the next wake's
+        W_bu z_{t+1} share one pass over W_bu, and the next wake's activations of the units the
+        sleep just changed are then recomputed; the sleep update (1 - a) w + a z^s of non-negative
+        w and z^s is non-negative, so its rectification is skipped.
+        """
+        dtype = self._w_bu.dtype
+        n = z.shape[0]
+        rows, cols = (int(v) for v in self.hidden_shape)
+        w_bu3, w_td3 = self._w_bu, self._w_td_t
+        w_bu2 = w_bu3.reshape(rows * cols, N_INPUT)
+        windows = self._windows
+        dreams = self._draw_dreams(n)[:, 0]
+        zc = np.ascontiguousarray(z, dtype=dtype)
+        eta, epsilon, boost = float(self.eta), float(self.epsilon), float(self.motor_change_boost)
+        pair = np.zeros((N_INPUT, 2), dtype=dtype)  # columns: z^s of this step, z of the next
+        products = np.zeros((rows * cols, 2), dtype=dtype)
+        products3 = products.reshape(rows, cols, 2)
+        err = np.empty(N_INPUT, dtype=dtype)
+        argmax, maximum, multiply, einsum, sqrt = (
+            np.argmax,
+            np.maximum,
+            np.multiply,
+            np.einsum,
+            np.sqrt,
+        )
+        r = w_bu2 @ zc[0] if n else None
+        for t in range(n):
+            factor = self.learning_rate_factor(self.n_steps_ + t)
+            if factor == 0.0:
+                if t + 1 < n:
+                    r = w_bu2 @ zc[t + 1]
+                continue
+            zt = zc[t]
+            # Wake: r = W_bu z (computed during the previous step), r^c around the winner.
+            win = windows[int(argmax(r))]
+            g = win.weights
+            block = w_td3[win.rows, win.cols]
+            multiply(
+                zt - einsum("abi,abj->j", g, block),
+                eta * factor * (boost if changed[t] else 1.0),
+                out=err,
+            )
+            block += g * err
+            maximum(block, 0, out=block)
+            # Sleep: z^s = W_td r^s, r~ = W_bu z^s (with the next wake's W_bu z alongside).
+            dream = windows[dreams[t]]
+            z_sleep = pair[:, 0]
+            einsum("abi,abj->j", dream.weights, w_td3[dream.rows, dream.cols], out=z_sleep)
+            last = t + 1 == n
+            if not last:
+                pair[:, 1] = zc[t + 1]
+            np.dot(w_bu2, pair, out=products)
+            win = windows[int(argmax(products[:, 0]))]
+            a = (epsilon * factor) * win.weights
+            block = w_bu3[win.rows, win.cols]
+            block *= 1.0 - a
+            block += a * z_sleep
+            block /= sqrt(einsum("abi,abi->ab", block, block))[..., None]
+            if not last:
+                products3[win.rows, win.cols, 1] = einsum("abi,i->ab", block, zc[t + 1])
+                r = products[:, 1].copy()
+
+    # ------------------------------------------------------------------------------------------
+    # Read-outs
+
+    def _readout_tables(self):
+        """Returns per-winner language (768, 80), motor (768, 4) and scores (768, n_words).
+
+        With a winner-take-all hidden code, every read-out depends on the input only through the
+        winning unit k: the reconstruction is W_td envelope(k). Tabulating it per unit makes batch
+        read-outs one matrix product (for the winners) and a lookup.
+        """
+        if self._tables is None:
+            envelope = self._envelope.astype(float)
+            w_td = self.W_td_.astype(float)
+            language = envelope @ w_td[LANGUAGE_SLICE].T
+            motor = envelope @ w_td[MOTOR_SLICE].T
+            codes = self.vocabulary_codes_
+            norms = np.linalg.norm(language, axis=1, keepdims=True) * np.linalg.norm(codes, axis=1)
+            scores = (language @ codes.T) / np.maximum(norms, 1e-300)
+            self._tables = (language, motor, scores)
+        return self._tables
+
+    def _winners(
+        self,
+        vision: np.ndarray,
+        language: np.ndarray | None,
+        motor: np.ndarray | None,
+        chunk: int = 32768,
+    ) -> np.ndarray:
+        """Returns argmax_j (W_bu z)_j for each sample, shape (n,), with omitted areas silent."""
+        w_bu = self.W_bu_
+        n = vision.shape[0]
+        winners = np.empty(n, dtype=np.int64)
+        dtype = w_bu.dtype
+        w_vision = np.ascontiguousarray(w_bu[:, VISION_SLICE].T)
+        w_language = np.ascontiguousarray(w_bu[:, LANGUAGE_SLICE].T)
+        w_motor = np.ascontiguousarray(w_bu[:, MOTOR_SLICE].T)
+        for start in range(0, n, chunk):
+            stop = min(start + chunk, n)
+            r = vision[start:stop].astype(dtype) @ w_vision
+            if language is not None:
+                r += language[start:stop].astype(dtype) @ w_language
+            if motor is not None:
+                r += motor[start:stop].astype(dtype) @ w_motor
+            winners[start:stop] = np.argmax(r, axis=1)
+        return winners
+
+    def recognise_batch(self, vision, motor) -> BatchRecognition:
+        """Recognises the behaviour of ``n`` samples from vision (n, 96) and motor (n, 4) codes.
+
+        The language area is omitted (silent); the language area reconstructed through W_td from the
+        competitive hidden code is compared with each vocabulary word's code by cosine similarity.
+        """
+        self._check_fitted()
+        vision = encoding.check_codes(vision, N_VISION, "vision")
+        motor = encoding.check_codes(motor, N_MOTOR, "motor")
+        if vision.shape[0] != motor.shape[0]:
+            raise ValueError(
+                f"vision and motor must have the same number of samples, got "
+                f"{vision.shape[0]} and {motor.shape[0]}"
+            )
+        winners = self._winners(vision, None, motor)
+        scores = self._readout_tables()[2][winners]
+        words = np.asarray(self.vocabulary)[np.argmax(scores, axis=1)]
+        return BatchRecognition(words, scores, winners)
+
+    def recognise(self, vision, motor) -> Recognition:
+        """Recognises one sample from vision (96,) and motor (4,) codes; see ``recognise_batch``."""
+        vision, motor = _single(vision, N_VISION, "vision"), _single(motor, N_MOTOR, "motor")
+        batch = self.recognise_batch(vision, motor)
+        return Recognition(str(batch.words[0]), batch.scores[0], self.hidden_code(batch.winners[0]))
+
+    def perform_batch(self, vision, words) -> BatchPerformance:
+        """Chooses motor directives for ``n`` samples from vision (n, 96) and words.
+
+        ``words`` is one word for all samples, a sequence of ``n`` words, or language codes (n, 80).
+        The motor area is omitted; its reconstruction through W_td gives graded activations (n, 4)
+        and the directive with the strongest one.
+        """
+        self._check_fitted()
+        vision = encoding.check_codes(vision, N_VISION, "vision")
+        n = vision.shape[0]
+        if isinstance(words, str):
+            language = np.broadcast_to(encoding.encode_word(words), (n, N_LANGUAGE))
+        elif isinstance(words, np.ndarray) and words.dtype.kind == "f":
+            language = encoding.check_codes(words, N_LANGUAGE, "language")
+        else:
+            language = encoding.encode_words(list(words))
+        if language.shape[0] != n:
+            raise ValueError(
+                f"vision and words must have the same number of samples, got {n} "
+                f"and {language.shape[0]}"
+            )
+        winners = self._winners(vision, language, None)
+        motor = self._readout_tables()[1][winners]
+        directives = np.asarray(DIRECTIVES)[np.argmax(motor, axis=1)]
+        return BatchPerformance(directives, motor, winners)
+
+    def perform(self, vision, word) -> Performance:
+        """Chooses the motor directive for one vision code (96,) and word; see ``perform_batch``."""
+        vision = _single(vision, N_VISION, "vision")
+        if not isinstance(word, str):
+            word = _single(word, N_LANGUAGE, "language")
+        batch = self.perform_batch(vision, word)
+        return Performance(
+            str(batch.directives[0]), batch.motor[0], self.hidden_code(batch.winners[0])
+        )
+
+
+def _single(code, width: int, name: str) -> np.ndarray:
+    array = np.asarray(code, dtype=float)
+    if array.shape != (width,):
+        raise ValueError(f"{name} code must have shape ({width},), got {array.shape}")
+    return array[None]

@@ -1,0 +1,144 @@
+"""Saving and loading a fitted ``Associator`` as ``.npz`` (never pickled).
+
+File layout (format version 1), every entry a plain numpy array:
+
+- ``format``: the string ``"associator"``; ``format_version``: int.
+- ``params``: JSON of ``Associator.get_params()`` (hyper-parameters, vocabulary included).
+- ``vocabulary_codes``: (n_words, 80) language codes the vocabulary had when saved.
+- ``W_bu``: (768, 180); ``W_td``: (180, 768); ``n_steps``: int.
+- ``rng_state``: JSON of the generator's ``bit_generator.state``, so training resumes exactly.
+- ``metadata``: JSON of a caller's dict (e.g. the vision encoder's arena), ``{}`` by default.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+
+import numpy as np
+
+from associator.encoding import N_INPUT, N_LANGUAGE
+from associator.network import Associator
+
+FORMAT = "associator"
+FORMAT_VERSION = 1
+_BIT_GENERATORS = ("PCG64", "PCG64DXSM", "Philox", "SFC64", "MT19937")
+_KEYS = (
+    "format",
+    "format_version",
+    "params",
+    "vocabulary_codes",
+    "W_bu",
+    "W_td",
+    "n_steps",
+    "rng_state",
+    "metadata",
+)
+
+
+def save(model: Associator, path, metadata: dict | None = None) -> str:
+    """Writes a fitted model to ``path`` (``.npz``) and returns the path as a string."""
+    model._check_fitted()
+    path = os.fspath(path)
+    params = model.get_params()
+    state = model.rng_.bit_generator.state
+    arrays = {
+        "format": np.array(FORMAT),
+        "format_version": np.array(FORMAT_VERSION),
+        "params": np.array(json.dumps(params)),
+        "vocabulary_codes": np.asarray(model.vocabulary_codes_),
+        "W_bu": np.ascontiguousarray(model.W_bu_),
+        "W_td": np.ascontiguousarray(model.W_td_),
+        "n_steps": np.array(model.n_steps_, dtype=np.int64),
+        "rng_state": np.array(json.dumps(state)),
+        "metadata": np.array(json.dumps(metadata or {})),
+    }
+    with open(path, "wb") as handle:
+        np.savez(handle, **arrays)
+    return path
+
+
+def _fail(path, why: str):
+    raise ValueError(f"{path}: not a valid associator file: {why}")
+
+
+def load_metadata(path) -> dict:
+    """Returns the metadata dict stored with a model."""
+    return _read(path)[1]
+
+
+def load(path) -> Associator:
+    """Reads a model written by ``save``; raises ValueError for a corrupt or mismatched file."""
+    return _read(path)[0]
+
+
+def _read(path):
+    path = os.fspath(path)
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            missing = [key for key in _KEYS if key not in archive.files]
+            if missing:
+                _fail(path, f"missing entries {missing}")
+            data = {key: archive[key] for key in _KEYS}
+    except ValueError as error:
+        if "not a valid associator file" in str(error):
+            raise
+        _fail(path, f"unreadable ({error})")
+    except (OSError, EOFError, zipfile.BadZipFile, KeyError) as error:
+        _fail(path, f"unreadable ({type(error).__name__}: {error})")
+    if str(data["format"]) != FORMAT:
+        _fail(path, f"format is {str(data['format'])!r}, expected {FORMAT!r}")
+    version = int(data["format_version"])
+    if version != FORMAT_VERSION:
+        _fail(path, f"format_version {version}; this code reads version {FORMAT_VERSION}")
+    try:
+        params = json.loads(str(data["params"]))
+        state = json.loads(str(data["rng_state"]))
+        metadata = json.loads(str(data["metadata"]))
+    except json.JSONDecodeError as error:
+        _fail(path, f"bad JSON entry ({error})")
+    params["hidden_shape"] = tuple(params["hidden_shape"])
+    params["vocabulary"] = tuple(params["vocabulary"])
+    try:
+        model = Associator(**params)
+        model._validate_params()
+    except (TypeError, ValueError) as error:
+        _fail(path, f"bad hyper-parameters ({error})")
+    rows, cols = model.hidden_shape
+    n_hidden = rows * cols
+    dtype = np.dtype(model.dtype)
+    w_bu, w_td = data["W_bu"], data["W_td"]
+    if w_bu.shape != (n_hidden, N_INPUT) or w_td.shape != (N_INPUT, n_hidden):
+        _fail(
+            path,
+            f"W_bu {w_bu.shape} and W_td {w_td.shape} do not match hidden_shape "
+            f"{model.hidden_shape}: expected ({n_hidden}, {N_INPUT}) and ({N_INPUT}, {n_hidden})",
+        )
+    if w_bu.dtype != dtype or w_td.dtype != dtype:
+        _fail(path, f"weights are {w_bu.dtype}/{w_td.dtype}, hyper-parameters say {dtype}")
+    for name, w in (("W_bu", w_bu), ("W_td", w_td)):
+        if not np.all(np.isfinite(w)) or np.any(w < 0):
+            _fail(path, f"{name} has negative or non-finite values")
+    if state.get("bit_generator") not in _BIT_GENERATORS:
+        _fail(
+            path,
+            f"unknown bit generator {state.get('bit_generator')!r}; allowed: {_BIT_GENERATORS}",
+        )
+    try:
+        generator = np.random.Generator(getattr(np.random, state["bit_generator"])())
+        generator.bit_generator.state = state
+    except (TypeError, ValueError, KeyError) as error:
+        _fail(path, f"bad rng state ({error})")
+    n_steps = int(data["n_steps"])
+    if n_steps < 0:
+        _fail(path, f"n_steps {n_steps} is negative")
+    model._set_state(
+        w_bu.reshape(rows, cols, N_INPUT), w_td.T.reshape(rows, cols, N_INPUT), n_steps, generator
+    )
+    codes = data["vocabulary_codes"]
+    if codes.shape != (len(model.vocabulary), N_LANGUAGE) or not np.array_equal(
+        codes, model.vocabulary_codes_
+    ):
+        _fail(path, "the vocabulary's language codes differ from this package's phoneme table")
+    return model, metadata
