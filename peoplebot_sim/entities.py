@@ -64,9 +64,18 @@ class PeopleBot(composer.Entity):
 
     def planar_pose(self, physics) -> np.ndarray:
         """Returns ``[x, y, yaw]``: world position in metres and heading in radians (CCW from +x)."""
-        xpos = physics.bind(self.root_body).xpos
-        xmat = physics.bind(self.root_body).xmat
+        body = self.body_id(physics)
+        xpos = physics.data.xpos[body]
+        xmat = physics.data.xmat[body]
         return np.array([xpos[0], xpos[1], np.arctan2(xmat[3], xmat[0])])
+
+    def body_id(self, physics) -> int:
+        """Returns the index of the base body in ``physics`` (cached per compiled model)."""
+        key = id(physics.model.ptr)
+        if getattr(self, "_body_id_key", None) != key:
+            self._body_id = int(physics.bind(self.root_body).element_id)
+            self._body_id_key = key
+        return self._body_id
 
     def set_planar_pose(self, physics, x: float, y: float, yaw: float) -> None:
         """Puts the robot on the floor at world ``(x, y)`` metres with heading ``yaw`` radians, at rest."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import dm_env
 import numpy as np
 from dm_control import composer
 from dm_control.composer.observation import observable
@@ -150,6 +151,8 @@ class ImitationTask(composer.Task):
             self._arena.overhead_camera, width=c.width, height=c.height, render_flag_overrides=no_shadow)
         obs["head_camera"] = observable.MJCFCamera(
             self._student.head_camera, width=c.width, height=c.height, render_flag_overrides=no_shadow)
+        # With composer's default update interval, delay and buffer size, each observable is computed
+        # once per control step, after its last substep.
         for name, ob in obs.items():
             camera = name.removesuffix("_camera")
             ob.enabled = camera in c.cameras if name.endswith("_camera") else True
@@ -161,11 +164,15 @@ class ImitationTask(composer.Task):
 
     # ------------------------------------------------------------------ spec
     def action_spec(self, physics):
+        self._actuator_ids(physics)
+        if self._action_spec is not None:
+            return self._action_spec
         acts = [self._student.actuators[n] for n in ACTION_NAMES]
         ranges = physics.bind(acts).ctrlrange
-        return specs.BoundedArray(
+        self._action_spec = specs.BoundedArray(
             shape=(len(acts),), dtype=np.float64, minimum=ranges[:, 0], maximum=ranges[:, 1],
             name="\t".join(f"{n} ({u})" for n, u in zip(ACTION_NAMES, ACTION_UNITS)))
+        return self._action_spec
 
     def get_reward(self, physics):
         return 0.0
@@ -216,18 +223,30 @@ class ImitationTask(composer.Task):
             i = int(np.flatnonzero(bad)[0])
             raise ValueError(f"action {ACTION_NAMES[i]}={action[i]} is outside "
                              f"[{spec.minimum[i]}, {spec.maximum[i]}] {ACTION_UNITS[i]}")
-        physics.bind([self._student.actuators[n] for n in ACTION_NAMES]).ctrl = action
+        physics.data.ctrl[self._actuator_ids(physics)] = action
         if self._teacher is not None:
             self.drive_teacher(physics)
+
+    def _actuator_ids(self, physics) -> np.ndarray:
+        key = id(physics.model.ptr)
+        if getattr(self, "_ids_key", None) != key:
+            bind = physics.bind
+            self._student_ids = np.array(
+                [bind(self._student.actuators[n]).element_id for n in ACTION_NAMES])
+            if self._teacher is not None:
+                self._teacher_ids = (bind(self._teacher.actuators["forward"]).element_id,
+                                     bind(self._teacher.actuators["turn"]).element_id)
+            self._action_spec = None
+            self._ids_key = key
+        return self._student_ids
 
     def drive_teacher(self, physics) -> str:
         """Steps the teacher's controller and sets its wheel servos; returns its directive."""
         student = self._student.planar_pose(physics)
         directive = self.teacher_controller.step(
             self._teacher.planar_pose(physics), student, self.config.control_timestep)
-        linear, turn = self.config.drive.command(directive)
-        physics.bind(self._teacher.actuators["forward"]).ctrl = linear
-        physics.bind(self._teacher.actuators["turn"]).ctrl = turn
+        self._actuator_ids(physics)
+        physics.data.ctrl[list(self._teacher_ids)] = self.config.drive.command(directive)
         self._last_directive = directive
         return directive
 
@@ -269,7 +288,48 @@ def robot_touches_obstacle(physics, robot, task) -> bool:
     return False
 
 
-def load(config: TaskConfig | None = None, seed=None, **overrides) -> composer.Environment:
+class Environment(composer.Environment):
+    """A composer environment that advances the physics of a control step in one ``mj_step`` call.
+
+    Composer steps the physics one substep at a time so that substep hooks can run between them; this
+    task has none, and the per-substep Python bookkeeping cost more than the physics itself. The
+    trajectory is identical: ``physics.step(n)`` runs the same ``n`` MuJoCo steps.
+    """
+
+    def __init__(self, task, **kwargs):
+        super().__init__(task, **kwargs)
+        hooks = self._hooks
+        no_substep_hooks = not (
+            hooks._before_substep.entity_hooks or hooks._before_substep.extra_hooks
+            or hooks._after_substep.entity_hooks or hooks._after_substep.extra_hooks)
+        default_schedules = all(
+            ob.update_interval == 1 and ob.delay == 0 and ob.buffer_size == 1
+            for ob in task.observables.values())
+        self._fused = no_substep_hooks and default_schedules
+
+    def step(self, action):
+        if not self._fused or self._reset_next_step:
+            return super().step(action)
+        self._hooks.before_step(self._physics_proxy, action, self._random_state)
+        self._observation_updater.prepare_for_next_control_step()
+        self._physics.step(self._n_sub_steps)
+        # The updater schedules default-interval observables for the last substep only, so the
+        # intermediate substeps' update() calls would only count; count them at once.
+        self._observation_updater._step_counter += self._n_sub_steps - 1
+        self._hooks.after_step(self._physics_proxy, self._random_state)
+        self._observation_updater.update()
+        terminating = (self._task.should_terminate_episode(self._physics_proxy)
+                       or self._physics.time() >= self._time_limit)
+        obs = self._observation_updater.get_observation()
+        reward = self._task.get_reward(self._physics_proxy)
+        discount = self._task.get_discount(self._physics_proxy)
+        if terminating:
+            self._reset_next_step = True
+            return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, obs)
+        return dm_env.TimeStep(dm_env.StepType.MID, reward, discount, obs)
+
+
+def load(config: TaskConfig | None = None, seed=None, **overrides) -> Environment:
     """Returns the imitation environment (a ``dm_env.Environment``).
 
     Args:
@@ -278,5 +338,5 @@ def load(config: TaskConfig | None = None, seed=None, **overrides) -> composer.E
     """
     config = dataclasses.replace(config or TaskConfig(), **overrides)
     task = ImitationTask(config)
-    return composer.Environment(task, random_state=seed, strip_singleton_obs_buffer_dim=True,
-                                raise_exception_on_physics_error=True)
+    return Environment(task, random_state=seed, strip_singleton_obs_buffer_dim=True,
+                       raise_exception_on_physics_error=True)

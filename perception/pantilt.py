@@ -59,7 +59,7 @@ class PanTiltLimits:
 class HeadMount:
     """Where the head's optical centre sits in the robot frame, metres (x forward, y left, z up)."""
 
-    position_m: tuple[float, float, float] = (0.15, 0.0, 1.20)
+    position_m: tuple[float, float, float] = (0.19, 0.0, 1.20)
 
 
 def head_camera_rotation(yaw_rad: float, pan_deg: float, tilt_deg: float) -> np.ndarray:

@@ -17,7 +17,14 @@ from collections.abc import Iterable
 from perception.camera import PinholeCamera
 from perception.layout import ROBOT_NAMES, MarkerPlacement, default_layout
 from perception.markers import DetectorConfig, MarkerDetection, MarkerDetector
-from perception.pose import RobotPoseEstimate, estimate_robot_poses
+import numpy as np
+
+from perception.pose import (
+    RobotPoseEstimate,
+    estimate_robot_poses,
+    fit_robot_pose,
+    robot_to_world,
+)
 from perception.tracking import KalmanTrack, TrackEstimate, TrackingConfig
 from perception.wallframe import ArenaGeometry, WallPose, world_to_wall
 
@@ -68,6 +75,10 @@ class Tracker:
       layout: marker placements.
       arena: for wall-frame poses.
       robots: which robots to report (default both).
+      region_margin_px: when every requested robot has a live track, :meth:`update` first searches
+        only boxes around the predicted markers, grown by this margin (pixels) and by half their
+        size; if a robot is not found there it searches the whole image. None always searches the
+        whole image.
     """
 
     def __init__(
@@ -78,6 +89,7 @@ class Tracker:
         layout: tuple[MarkerPlacement, ...] = default_layout(),
         arena: ArenaGeometry = _ARENA,
         robots: Iterable[str] = ROBOT_NAMES,
+        region_margin_px: float | None = 12.0,
     ):
         self.layout = tuple(layout)
         self.arena = arena
@@ -88,6 +100,19 @@ class Tracker:
             raise ValueError(f"unknown robots {unknown}; allowed: {sorted(known)}")
         self.detector = MarkerDetector(detector_config, layout=self.layout)
         self.tracks = {robot: KalmanTrack(robot, tracking_config) for robot in self.robots}
+        self.region_margin_px = region_margin_px
+        # Per robot: marker corners (4M, 3), plate normals (M, 3) and centres (M, 3), robot frame.
+        self._robot_geometry = {
+            robot: (
+                np.concatenate([p.corners_robot() for p in self.layout if p.robot == robot]),
+                np.array([p.rotation[:, 2] for p in self.layout if p.robot == robot]),
+                np.array([p.position_m for p in self.layout if p.robot == robot]),
+            )
+            for robot in self.robots
+        }
+        self.region_searches = 0
+        self.full_frame_searches = 0
+        self.last_frame: FrameResult | None = None
 
     def _check_robots(self, robots) -> tuple[str, ...]:
         robots = self.robots if robots is None else tuple(robots)
@@ -97,7 +122,7 @@ class Tracker:
         return robots
 
     def estimate(
-        self, image, camera: PinholeCamera, robots: Iterable[str] | None = None
+        self, image, camera: PinholeCamera, robots: Iterable[str] | None = None, regions=None
     ) -> FrameResult:
         """Returns the detections and per-robot poses in one image (no filtering).
 
@@ -105,13 +130,69 @@ class Tracker:
           image: (H, W, 3) RGB or (H, W) gray uint8, of the camera's image size.
           camera: the camera with its extrinsics at the time of the image.
           robots: which robots to estimate (default the tracker's).
+          regions: optional pixel boxes ``(x0, y0, x1, y1)`` to search instead of the whole image.
         """
         robots = self._check_robots(robots)
-        detections = self.detector.detect(image, camera)
+        detections = self.detector.detect(image, camera, regions)
         poses = estimate_robot_poses(
             detections, camera, layout=self.layout, arena=self.arena, robots=robots
         )
         return FrameResult(detections, poses)
+
+    def _predicted_regions(self, camera: PinholeCamera, time_s: float, robots) -> list | None:
+        """Returns pixel boxes around every requested robot's predicted markers, or None when some
+        robot has no live track (or region search is off)."""
+        if self.region_margin_px is None:
+            return None
+        boxes = []
+        for robot in robots:
+            pose = self.tracks[robot].predict_pose(time_s)
+            if pose is None:
+                return None
+            rotation, position = robot_to_world(*pose)
+            corners, normals, centres = self._robot_geometry[robot]
+            # Only plates that face the camera can be seen.
+            facing = np.einsum(
+                "ij,ij->i", centres @ rotation.T + position - camera.position_world,
+                normals @ rotation.T) < 0
+            if not np.any(facing):
+                continue
+            pixels = camera.project(
+                corners[np.repeat(facing, 4)] @ rotation.T + position).reshape(-1, 4, 2)
+            for quad in pixels:
+                if not np.all(np.isfinite(quad)):
+                    continue
+                lo, hi = quad.min(axis=0), quad.max(axis=0)
+                grow = self.region_margin_px + 0.5 * (hi - lo).max()
+                x0, y0 = lo - grow
+                x1, y1 = hi + grow
+                if x1 < 0 or y1 < 0 or x0 >= camera.width or y0 >= camera.height:
+                    continue
+                boxes.append((x0, y0, x1 + 1, y1 + 1))
+        return _merge_boxes(boxes) if boxes else None
+
+    def _estimate_in_regions(self, image, camera, time_s, robots, regions) -> FrameResult | None:
+        """Returns the frame's poses found in ``regions``, fitted from the tracks' predictions
+        (no per-marker PnP), or None if some robot was not found there."""
+        found = self.detector.detect_corners(image, regions)
+        poses = {}
+        for robot in robots:
+            mine = {}
+            for marker_id, corners in found:
+                if self.detector.placement(marker_id).robot == robot:
+                    mine.setdefault(marker_id, corners)
+            if not mine:
+                return None
+            try:
+                poses[robot] = fit_robot_pose(
+                    sorted(mine.items()), camera, robot, self.tracks[robot].predict_pose(time_s),
+                    layout=self.layout, arena=self.arena, iterations=3)
+            except ValueError:
+                return None
+            # A fit far from every corner (a false or swapped detection) falls back to a full search.
+            if poses[robot].reprojection_error_px > 2.0:
+                return None
+        return FrameResult((), poses)
 
     def update(
         self, image, camera: PinholeCamera, time_s: float, robots: Iterable[str] | None = None
@@ -122,7 +203,17 @@ class Tracker:
         not, lost after the coast time.
         """
         robots = self._check_robots(robots)
-        frame = self.estimate(image, camera, robots)
+        frame = None
+        regions = self._predicted_regions(camera, time_s, robots)
+        if regions is not None:
+            frame = self._estimate_in_regions(image, camera, time_s, robots, regions)
+            if frame is None:
+                self.full_frame_searches += 1  # someone was not where predicted: search it all
+            else:
+                self.region_searches += 1
+        if frame is None:
+            frame = self.estimate(image, camera, robots)
+        self.last_frame = frame
         out = {}
         for robot in robots:
             measurement = frame.poses.get(robot)
@@ -130,3 +221,22 @@ class Tracker:
             wall = None if track.pose is None else world_to_wall(*track.pose, self.arena)
             out[robot] = TrackedRobot(track, wall, measurement)
         return out
+
+
+def _merge_boxes(boxes: list) -> list:
+    """Returns the boxes with overlapping ones merged into their bounding box."""
+    merged = [list(b) for b in boxes]
+    changed = True
+    while changed:
+        changed = False
+        for i in range(len(merged)):
+            for j in range(i + 1, len(merged)):
+                a, b = merged[i], merged[j]
+                if a[0] <= b[2] and b[0] <= a[2] and a[1] <= b[3] and b[1] <= a[3]:
+                    merged[i] = [min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3])]
+                    del merged[j]
+                    changed = True
+                    break
+            if changed:
+                break
+    return [tuple(b) for b in merged]

@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 
+import cv2
 import numpy as np
 
 from perception.camera import PinholeCamera
@@ -88,23 +89,57 @@ def _initial_guess(
     return np.array([origin[0], origin[1], yaw])
 
 
-def _residuals(
-    params: np.ndarray, corners_robot: np.ndarray, observed: np.ndarray, camera: PinholeCamera
-) -> np.ndarray:
-    rotation, position = robot_to_world(*params)
-    predicted = camera.project(corners_robot @ rotation.T + position)
-    return (predicted - observed).ravel()
+def _normalised_observations(observed_px: np.ndarray, camera: PinholeCamera) -> np.ndarray:
+    """Returns the observed pixels as undistorted normalised image coordinates, shape (N, 2)."""
+    if camera.distortion.size and np.any(camera.distortion != 0):
+        return cv2.undistortPoints(
+            np.ascontiguousarray(observed_px, dtype=float).reshape(-1, 1, 2),
+            camera.matrix,
+            camera.distortion,
+        ).reshape(-1, 2)
+    k = camera.matrix
+    v = (observed_px[:, 1] - k[1, 2]) / k[1, 1]
+    u = (observed_px[:, 0] - k[0, 2] - k[0, 1] * v) / k[0, 0]
+    return np.column_stack([u, v])
 
 
-def _jacobian(params, corners_robot, observed, camera, step=(1e-5, 1e-5, 1e-6)) -> np.ndarray:
-    columns = []
-    for k, h in enumerate(step):
-        delta = np.zeros(3)
-        delta[k] = h
-        plus = _residuals(params + delta, corners_robot, observed, camera)
-        minus = _residuals(params - delta, corners_robot, observed, camera)
-        columns.append((plus - minus) / (2.0 * h))
-    return np.column_stack(columns)
+class _Projection:
+    """The pinhole constants of one fit, computed once: camera-from-world rotation and translation
+    and the focal lengths."""
+
+    def __init__(self, camera: PinholeCamera):
+        self.r_cw = camera.rotation_camera_from_world
+        self.t_cw = camera.translation_camera_from_world
+        self.focal = np.array([camera.matrix[0, 0], camera.matrix[1, 1]])
+        self.d_planar = self.r_cw[:, :2]  # d p_camera / d (x, y)
+
+
+def _residuals_and_jacobian(
+    params: np.ndarray, corners_robot: np.ndarray, observed_n: np.ndarray, proj: _Projection
+) -> tuple[np.ndarray, np.ndarray]:
+    """Returns the reprojection residuals in pixels, shape (2N,), and their analytic Jacobian with
+    respect to ``(x, y, yaw)``, shape (2N, 3); NaN residuals for corners behind the camera.
+
+    Residuals are taken in undistorted normalised coordinates and scaled by the focal lengths.
+    """
+    x, y, yaw = params
+    c, s = np.cos(yaw), np.sin(yaw)
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    d_rotation = np.array([[-s, -c, 0.0], [c, -s, 0.0], [0.0, 0.0, 0.0]])
+    p = corners_robot @ (proj.r_cw @ rotation).T + (proj.r_cw @ (x, y, 0.0) + proj.t_cw)
+    dp_yaw = corners_robot @ (proj.r_cw @ d_rotation).T
+    z = p[:, 2:3]
+    z = np.where(z > 1e-9, z, np.nan)
+    uv = p[:, :2] / z
+    residuals = (uv - observed_n) * proj.focal
+    jacobian = np.empty((len(p), 2, 3))
+    # d(uv)/dq = (dp_xy/dq - uv * dp_z/dq) / z, for q in x, y (constant dp) and yaw.
+    jacobian[:, :, :2] = (proj.d_planar[None, :2, :] - uv[:, :, None] * proj.d_planar[2]) / z[
+        :, :, None
+    ]
+    jacobian[:, :, 2] = (dp_yaw[:, :2] - uv * dp_yaw[:, 2:3]) / z
+    jacobian *= proj.focal[None, :, None]
+    return residuals.ravel(), jacobian.reshape(-1, 3)
 
 
 def fit_planar_pose(
@@ -117,7 +152,8 @@ def fit_planar_pose(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Returns ``(params, residuals, jacobian)`` of a Levenberg-Marquardt fit of ``(x, y, yaw)``.
 
-    Minimises ``sum |project(R(yaw) c + (x, y, 0)) - observed|^2`` over the corners ``c``.
+    Minimises ``sum |project(R(yaw) c + (x, y, 0)) - observed|^2`` over the corners ``c``, with the
+    analytic Jacobian of the pinhole projection (residuals in pixels).
 
     Args:
       initial: starting ``(x_m, y_m, yaw_rad)``, shape (3,).
@@ -127,33 +163,36 @@ def fit_planar_pose(
       iterations: the most Levenberg-Marquardt steps.
     """
     params = np.asarray(initial, dtype=float).copy()
-    r = _residuals(params, corners_robot, observed_px, camera)
+    corners_robot = np.asarray(corners_robot, dtype=float)
+    observed_n = _normalised_observations(np.asarray(observed_px, dtype=float), camera)
+    proj = _Projection(camera)
+    r, jac = _residuals_and_jacobian(params, corners_robot, observed_n, proj)
     if not np.all(np.isfinite(r)):
         raise ValueError("initial pose puts corners behind the camera")
     cost = float(r @ r)
-    damping = 1e-3
+    damping = 1e-6
     for _ in range(iterations):
-        jac = _jacobian(params, corners_robot, observed_px, camera)
         normal = jac.T @ jac
         gradient = jac.T @ r
-        improved = False
+        improved = converged = False
         for _ in range(10):
             step = np.linalg.solve(normal + damping * np.diag(np.diag(normal) + 1e-12), -gradient)
             trial = params + step
-            r_trial = _residuals(trial, corners_robot, observed_px, camera)
+            r_trial, jac_trial = _residuals_and_jacobian(trial, corners_robot, observed_n, proj)
             cost_trial = float(r_trial @ r_trial) if np.all(np.isfinite(r_trial)) else np.inf
             if cost_trial <= cost:
-                params, r, damping, improved = trial, r_trial, max(damping / 10.0, 1e-9), True
-                converged = cost - cost_trial < 1e-12 * max(cost, 1e-12) or np.all(
-                    np.abs(step) < (1e-8, 1e-8, 1e-9)
+                # 10 micrometres and 10 microradians: far below what pixels can resolve.
+                converged = cost - cost_trial < 1e-9 * max(cost, 1e-12) or np.all(
+                    np.abs(step) < (1e-5, 1e-5, 1e-5)
                 )
-                cost = cost_trial
+                params, r, jac, cost = trial, r_trial, jac_trial, cost_trial
+                damping, improved = max(damping / 10.0, 1e-9), True
                 break
             damping *= 10.0
         if not improved or converged:
             break
     params[2] = float(wrap_radians(params[2]))
-    return params, r, _jacobian(params, corners_robot, observed_px, camera)
+    return params, r, jac
 
 
 def estimate_robot_pose(
@@ -188,9 +227,83 @@ def estimate_robot_pose(
             )
     largest = max(mine, key=lambda d: d.area_px())
     initial = _initial_guess(largest, by_id[largest.marker_id], camera)
-    corners_robot = np.concatenate([by_id[d.marker_id].corners_robot() for d in mine])
-    observed = np.concatenate([d.corners_px for d in mine])
-    params, residuals, jac = fit_planar_pose(initial, corners_robot, observed, camera)
+    return fit_robot_pose(
+        [(d.marker_id, d.corners_px) for d in mine], camera, robot, initial,
+        layout=layout, arena=arena, pixel_noise_px=pixel_noise_px,
+    )
+
+
+def planar_pose_from_horizontal_corners(
+    corners_robot: np.ndarray, observed_px: np.ndarray, camera: PinholeCamera
+) -> np.ndarray:
+    """Returns ``(x_m, y_m, yaw_rad)`` in closed form from corners of horizontal plates.
+
+    Each pixel's ray is cut with the horizontal plane of its corner (the plate's known height), and
+    the robot-frame corners are fitted to those floor-plane points by a 2-D rigid least-squares
+    (Kabsch) fit. Exact for noise-free corners; needs no starting pose.
+
+    Args:
+      corners_robot: corner positions in the robot frame, metres, shape (N, 3), N >= 2.
+      observed_px: their pixels, shape (N, 2).
+      camera: the camera with its extrinsics.
+    """
+    normalised = _normalised_observations(np.asarray(observed_px, dtype=float), camera)
+    rays = np.column_stack([normalised, np.ones(len(normalised))]) @ camera.rotation_world_from_camera.T
+    origin = camera.position_world
+    with np.errstate(divide="ignore", invalid="ignore"):
+        depth = (corners_robot[:, 2] - origin[2]) / rays[:, 2]
+    if not np.all(np.isfinite(depth)) or np.any(depth <= 0):
+        raise ValueError("a corner's ray does not reach its plate's height in front of the camera")
+    points = origin[:2] + depth[:, None] * rays[:, :2]
+    local = corners_robot[:, :2]
+    local_mean, points_mean = local.mean(axis=0), points.mean(axis=0)
+    h = (local - local_mean).T @ (points - points_mean)
+    yaw = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
+    c, s = np.cos(yaw), np.sin(yaw)
+    xy = points_mean - np.array([[c, -s], [s, c]]) @ local_mean
+    return np.array([xy[0], xy[1], yaw])
+
+
+def fit_robot_pose(
+    corners: Iterable[tuple[int, np.ndarray]],
+    camera: PinholeCamera,
+    robot: str,
+    initial,
+    *,
+    layout: tuple[MarkerPlacement, ...] = default_layout(),
+    arena: ArenaGeometry = _ARENA,
+    pixel_noise_px: float = 0.3,
+    iterations: int = 20,
+) -> RobotPoseEstimate:
+    """Returns the planar pose of ``robot`` fitted to detected marker corners from a starting pose.
+
+    A tracker that predicts the pose passes its prediction as ``initial`` and skips the per-marker
+    PnP of :func:`estimate_robot_pose`.
+
+    Args:
+      corners: ``(marker_id, corners_px (4, 2))`` of the robot's detected markers (TL, TR, BR, BL).
+      camera: the camera with its extrinsics.
+      robot: which robot.
+      initial: starting ``(x_m, y_m, yaw_rad)``.
+      layout, arena, pixel_noise_px: as for :func:`estimate_robot_pose`.
+      iterations: the most Levenberg-Marquardt steps (from a tracker's prediction, a few suffice);
+        when every marker is a horizontal (top) plate the closed-form
+        :func:`planar_pose_from_horizontal_corners` replaces the iterations.
+    """
+    by_id = {p.marker_id: p for p in layout}
+    corners = list(corners)
+    for marker_id, _ in corners:
+        if marker_id not in by_id or by_id[marker_id].robot != robot:
+            raise ValueError(f"marker id {marker_id} is not one of {robot!r}'s in the layout")
+    corners_robot = np.concatenate([by_id[i].corners_robot() for i, _ in corners])
+    observed = np.concatenate([np.asarray(c, dtype=float).reshape(4, 2) for _, c in corners])
+    if all(by_id[i].rotation[2, 2] > 0.999 for i, _ in corners):
+        # Only top plates: the closed-form floor-plane fit is already the answer.
+        initial = planar_pose_from_horizontal_corners(corners_robot, observed, camera)
+        iterations = 0
+    params, residuals, jac = fit_planar_pose(
+        initial, corners_robot, observed, camera, iterations=iterations
+    )
     rms = float(np.sqrt(np.mean(residuals.reshape(-1, 2) ** 2) * 2.0))
     sigma = max(rms, pixel_noise_px)
     covariance = sigma**2 * np.linalg.pinv(jac.T @ jac)
@@ -202,7 +315,7 @@ def estimate_robot_pose(
         yaw_rad=yaw,
         wall=world_to_wall(x, y, yaw, arena),
         reprojection_error_px=rms,
-        marker_ids=tuple(sorted(d.marker_id for d in mine)),
+        marker_ids=tuple(sorted(i for i, _ in corners)),
         n_corners=len(observed),
         covariance=covariance,
     )

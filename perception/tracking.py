@@ -215,6 +215,16 @@ class KalmanTrack:
         self.covariance_ = i_kh @ self.covariance_ @ i_kh.T + gain @ r @ gain.T  # Joseph form
         return True
 
+    def predict_pose(self, time_s: float) -> np.ndarray | None:
+        """Returns the pose ``(x_m, y_m, yaw_rad)`` the track expects at ``time_s`` without changing
+        the track, or None if it is lost (or would be lost by then)."""
+        if self.state_ is None or time_s - self.last_seen_s_ > self.config.max_coast_s:
+            return None
+        dt = max(time_s - self.time_s_, 0.0)
+        pose = self.state_[:3] + dt * self.state_[3:]
+        pose[2] = wrap_radians(pose[2])
+        return pose
+
     def estimate(self, seen: bool = False) -> TrackEstimate:
         """Returns the current estimate without advancing time."""
         time_s = float(self.time_s_) if self.time_s_ is not None else float("nan")

@@ -1,0 +1,198 @@
+"""``peoplebot track-bench``: how well the student's vision recovers poses from rendered frames.
+
+The teacher is put at random poses (anywhere, near walls, in corners, docked at the table) with the
+student in view; each frame is rendered by MuJoCo and tracked by ``perception`` alone, and the
+estimate is compared with the simulator's pose. Two viewpoints:
+
+- overhead: the arena's overhead camera; both robots' top markers;
+- head: the student's pan-tilt camera aimed at the teacher (1 to 3 m away), seeing its side, back or
+  front markers; the camera's extrinsics come from the student's own pose and head angles through
+  ``perception.pantilt.head_camera``, as they would on the real robot.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import pathlib
+import time
+
+import mujoco
+import numpy as np
+from tqdm import tqdm
+
+from peoplebot_sim import cameras
+from peoplebot_sim.rendering import FrameRenderer
+from peoplebot_sim.task import ImitationTask, TaskConfig
+from perception import layout as marker_layout
+from perception.pantilt import PanTiltLimits, aim_at, head_camera
+from perception.markers import DetectorConfig
+from perception.pipeline import Tracker
+from perception.wallframe import wrap_degrees
+
+CATEGORIES = ("anywhere", "near_wall", "corner", "docked")
+
+
+@dataclasses.dataclass
+class PoseSample:
+    teacher: tuple
+    student: tuple
+    category: str
+    pan_deg: float = 0.0
+    tilt_deg: float = 0.0
+
+
+def _teacher_pose(task: ImitationTask, rng, category: str) -> tuple:
+    h = task.geometry.half_side_m
+    if category == "anywhere":
+        return task.random_free_pose(rng, margin_m=0.45)
+    if category == "near_wall":
+        while True:
+            along = rng.uniform(-h + 0.5, h - 0.5)
+            depth = h - rng.uniform(0.45, 0.7)
+            wall = rng.integers(4)
+            x, y = [(along, depth), (depth, along), (along, -depth), (-depth, along)][wall]
+            if not (abs(x) < 0.5 + 0.45 and y > 1.6 - 0.45):
+                return x, y, rng.uniform(-math.pi, math.pi)
+    if category == "corner":
+        sx, sy = rng.choice([-1, 1], size=2)
+        if sy > 0 and sx > 0:
+            pass
+        return (sx * (h - rng.uniform(0.45, 0.8)), sy * (h - rng.uniform(0.45, 0.8)),
+                rng.uniform(-math.pi, math.pi))
+    dock = task.teacher_controller.dock_pose
+    return (dock[0] + rng.normal(0, 0.03), dock[1] + rng.normal(0, 0.02),
+            dock[2] + math.radians(rng.normal(0, 3)))
+
+
+def _overhead_student(task, rng, teacher) -> tuple:
+    for _ in range(1000):
+        pose = task.random_free_pose(rng, margin_m=0.45)
+        if math.hypot(pose[0] - teacher[0], pose[1] - teacher[1]) > 0.9:
+            return pose
+    raise RuntimeError("no free student pose")
+
+
+def _head_student(task, rng, teacher, limits: PanTiltLimits) -> tuple | None:
+    h = task.geometry.half_side_m - 0.45
+    for _ in range(200):
+        distance = rng.uniform(1.0, 3.0)
+        bearing = rng.uniform(-math.pi, math.pi)
+        x = teacher[0] + distance * math.cos(bearing)
+        y = teacher[1] + distance * math.sin(bearing)
+        if abs(x) > h or abs(y) > h or (abs(x) < 0.95 and y > 1.15):
+            continue
+        facing = math.atan2(teacher[1] - y, teacher[0] - x) + math.radians(rng.uniform(-40, 40))
+        return x, y, facing
+    return None
+
+
+def _set_pose(task, physics, robot, pose):
+    robot.set_planar_pose(physics, *pose)
+
+
+def run(n_samples: int = 200, width: int = 320, height: int = 240, seed: int = 0,
+        out_path=None, progress: bool = True, detector_config: DetectorConfig | None = None) -> dict:
+    """Runs the bench; returns (and writes, if ``out_path``) its figures as a dict."""
+    if n_samples <= 0:
+        raise ValueError(f"n_samples must be positive, got {n_samples}")
+    rng = np.random.default_rng(seed)
+    task = ImitationTask(TaskConfig(width=width, height=height))
+    from dm_control import mjcf
+
+    physics = mjcf.Physics.from_mjcf_model(task.root_entity.mjcf_model)
+    m, d = physics.model.ptr, physics.data.ptr
+    pan_qpos = physics.model.jnt_qposadr[physics.model.name2id("student/head_pan", "joint")]
+    tilt_qpos = physics.model.jnt_qposadr[physics.model.name2id("student/head_tilt", "joint")]
+    limits = PanTiltLimits()
+    results = {}
+    with FrameRenderer(physics, width, height) as renderer:
+        for view in ("overhead", "head"):
+            tracker = Tracker(
+                detector_config=detector_config or DetectorConfig(),
+                robots=("teacher", "student") if view == "overhead" else ("teacher",))
+            errors = {"teacher": [], "student": []}
+            seen = {"teacher": 0, "student": 0}
+            total = 0
+            render_s = track_s = 0.0
+            per_category = {c: {"n": 0, "seen": 0} for c in CATEGORIES}
+            iterator = range(n_samples)
+            if progress:
+                iterator = tqdm(iterator, desc=f"track-bench {view}", unit="frame")
+            for i in iterator:
+                category = CATEGORIES[i % len(CATEGORIES)]
+                teacher = _teacher_pose(task, rng, category)
+                if view == "overhead":
+                    student = _overhead_student(task, rng, teacher)
+                    pan = tilt = 0.0
+                else:
+                    student = _head_student(task, rng, teacher, limits)
+                    if student is None:
+                        continue
+                    target = (teacher[0], teacher[1], marker_layout.SIDE_MARKER_HEIGHT_M)
+                    pan, tilt = aim_at(student, target)
+                    pan = float(np.clip(pan, limits.pan_min_deg, limits.pan_max_deg))
+                    tilt = float(np.clip(tilt, limits.tilt_min_deg, limits.tilt_max_deg))
+                _set_pose(task, physics, task.teacher, teacher)
+                _set_pose(task, physics, task.student, student)
+                d.qpos[pan_qpos] = math.radians(pan)
+                d.qpos[tilt_qpos] = math.radians(tilt)
+                mujoco.mj_forward(m, d)
+                t0 = time.perf_counter()
+                image = renderer.render("overhead" if view == "overhead" else "student/head_camera")
+                t1 = time.perf_counter()
+                if view == "overhead":
+                    camera = cameras.camera_model(physics, "overhead", width, height)
+                else:
+                    intrinsics = cameras.camera_model(physics, "student/head_camera", width, height)
+                    camera = head_camera(intrinsics, student, pan, tilt)
+                frame = tracker.estimate(image, camera)
+                t2 = time.perf_counter()
+                render_s += t1 - t0
+                track_s += t2 - t1
+                total += 1
+                per_category[category]["n"] += 1
+                truths = {"teacher": teacher, "student": student}
+                for robot in tracker.robots:
+                    estimate = frame.poses.get(robot)
+                    if estimate is None:
+                        continue
+                    seen[robot] += 1
+                    if robot == "teacher":
+                        per_category[category]["seen"] += 1
+                    truth = truths[robot]
+                    errors[robot].append((
+                        100.0 * math.hypot(estimate.x_m - truth[0], estimate.y_m - truth[1]),
+                        abs(float(wrap_degrees(math.degrees(estimate.yaw_rad - truth[2])))),
+                    ))
+            figures = {}
+            for robot in tracker.robots:
+                e = np.array(errors[robot]).reshape(-1, 2)
+                figures[robot] = {
+                    "frames": total,
+                    "detection_rate": seen[robot] / max(total, 1),
+                    "position_error_cm": _stats(e[:, 0]),
+                    "heading_error_deg": _stats(e[:, 1]),
+                }
+            results[view] = {
+                "robots": figures,
+                "teacher_detection_by_category": {
+                    c: v["seen"] / v["n"] if v["n"] else None for c, v in per_category.items()},
+                "render_only_fps": total / render_s if render_s else None,
+                "render_and_track_fps": total / (render_s + track_s) if render_s else None,
+                "tracking_share_of_render_time": track_s / render_s if render_s else None,
+            }
+    report = {"width": width, "height": height, "samples": n_samples, "seed": seed,
+              "viewpoints": results}
+    if out_path is not None:
+        out_path = pathlib.Path(out_path)
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        out_path.write_text(json.dumps(report, indent=2))
+    return report
+
+
+def _stats(values: np.ndarray) -> dict:
+    if values.size == 0:
+        return {"median": None, "p95": None}
+    return {"median": float(np.median(values)), "p95": float(np.percentile(values, 95))}
