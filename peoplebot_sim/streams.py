@@ -85,7 +85,12 @@ class StreamGenerator:
                 bind(body).gravcomp = 1.0
         self._m, self._d = self.physics.model.ptr, self.physics.data.ptr
         mujoco.mj_forward(self._m, self._d)
-        self._teacher_body = bind(self.task.teacher.root_body).element_id
+        base = bind(self.task.teacher.root_body).element_id
+        frame = self.physics.model.body_rootid[base]  # the attachment frame, child of the world
+        freejoint = self.physics.model.body_jntadr[frame]
+        if freejoint < 0 or self.physics.model.jnt_type[freejoint] != mujoco.mjtJoint.mjJNT_FREE:
+            raise RuntimeError("the teacher's base has no free joint")
+        self._teacher_qpos = int(self.physics.model.jnt_qposadr[freejoint])
         self._forward = bind(self.task.teacher.actuators["forward"]).element_id
         self._turn = bind(self.task.teacher.actuators["turn"]).element_id
         self._student = self.task.student.planar_pose(self.physics)
@@ -95,12 +100,37 @@ class StreamGenerator:
         self._previous = None
         self.steps_done = 0
 
+    def get_state(self) -> dict:
+        """Returns everything needed to continue the stream identically: the physics' integration
+        state (including the solver's warm start), the teacher controller's state and counters."""
+        size = mujoco.mj_stateSize(self._m, mujoco.mjtState.mjSTATE_INTEGRATION)
+        physics_state = np.empty(size)
+        mujoco.mj_getState(self._m, self._d, physics_state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        return {
+            "physics": physics_state.tolist(),
+            "teacher": self.task.teacher_controller.get_state(),
+            "previous": self._previous,
+            "steps_done": self.steps_done,
+        }
+
+    def set_state(self, state: dict) -> None:
+        """Restores ``get_state``'s result into a generator built with the same seed and config."""
+        physics_state = np.asarray(state["physics"], dtype=float)
+        size = mujoco.mj_stateSize(self._m, mujoco.mjtState.mjSTATE_INTEGRATION)
+        if physics_state.shape != (size,):
+            raise ValueError(f"physics state has {physics_state.size} values, this model needs {size}")
+        mujoco.mj_setState(self._m, self._d, physics_state, mujoco.mjtState.mjSTATE_INTEGRATION)
+        # Positions only: a full mj_forward would also run the solver and change its warm start.
+        mujoco.mj_kinematics(self._m, self._d)
+        self.task.teacher_controller.set_state(state["teacher"])
+        self._previous = state["previous"]
+        self.steps_done = int(state["steps_done"])
+
     def teacher_pose(self) -> np.ndarray:
         """Returns the teacher's ``[x, y, yaw]`` (m, m, rad), world frame."""
-        d = self._d
-        xpos = d.xpos[self._teacher_body]
-        xmat = d.xmat[self._teacher_body]
-        return np.array([xpos[0], xpos[1], np.arctan2(xmat[3], xmat[0])])
+        # From the free joint's qpos: current after mj_step (xpos lags one physics step behind).
+        x, y, _, w, qx, qy, qz = self._d.qpos[self._teacher_qpos:self._teacher_qpos + 7]
+        return np.array([x, y, np.arctan2(2 * (w * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))])
 
     def generate(self, n_steps: int, progress=None) -> TeacherStream:
         """Runs ``n_steps`` control steps and returns their stream; ``progress`` is called with each

@@ -104,6 +104,8 @@ class Teacher:
     def reset(self, rng=None) -> None:
         """Starts a fresh 'go' behaviour."""
         self._rng = np.random.default_rng(rng)
+        self.loop = True
+        self.finished = False
         self.word = "go"
         self.directive = "forward"
         self.time_s = 0.0
@@ -114,7 +116,48 @@ class Teacher:
         self._turn_target_deg = 0.0
         self._obstacle_bearing = 0.0
 
+    _STATE_FIELDS = ("word", "directive", "time_s", "cycles_completed", "phase", "loop", "finished",
+                     "_behaviour_start_s", "_progress_anchor", "_turn_sign", "_turn_target_deg",
+                     "_obstacle_bearing")
+
+    def get_state(self) -> dict:
+        """Returns the controller's full state as plain JSON-able values (for checkpoints)."""
+        state = {name: getattr(self, name) for name in self._STATE_FIELDS}
+        state["_progress_anchor"] = (None if self._progress_anchor is None
+                                     else [float(v) for v in self._progress_anchor])
+        state["events"] = [dataclasses.asdict(e) for e in self.events]
+        state["rng"] = self._rng.bit_generator.state
+        return state
+
+    def set_state(self, state: dict) -> None:
+        """Restores a state from ``get_state``; the controller then continues identically."""
+        missing = set(self._STATE_FIELDS) - set(state)
+        if missing:
+            raise ValueError(f"teacher state lacks {sorted(missing)}")
+        for name in self._STATE_FIELDS:
+            setattr(self, name, state[name])
+        if self._progress_anchor is not None:
+            self._progress_anchor = tuple(self._progress_anchor)
+        self.events = [WatchdogEvent(e["time_s"], e["behaviour"], e["reason"], tuple(e["pose"]))
+                       for e in state.get("events", [])]
+        self._rng = np.random.default_rng()
+        self._rng.bit_generator.state = state["rng"]
+
+    def begin(self, word: str, loop: bool = False) -> None:
+        """Starts behaviour ``word`` now (as a demonstration of that word alone, when ``loop`` is
+        False: 'go' then never switches to 'pick', and a finished 'pick' or 'lift' is reported by
+        ``finished`` instead of moving on)."""
+        if word not in ("go", "pick", "lift"):
+            raise ValueError(f"unknown word {word!r}; allowed: go, pick, lift")
+        self.loop = loop
+        self.finished = False
+        self._enter(word, {"go": "drive", "pick": "line_up", "lift": "back"}[word])
+
     def _enter(self, word: str, phase: str) -> None:
+        if not getattr(self, "loop", True) and word != getattr(self, "word", word):
+            self.finished = True  # a single behaviour is done: hold it instead of moving on
+            self.phase = "done"
+            return
         self.word = word
         self.phase = phase
         self._behaviour_start_s = getattr(self, "time_s", 0.0)
@@ -169,6 +212,8 @@ class Teacher:
         x, y, yaw = (float(v) for v in pose)
         self.time_s += dt
         self._watchdog(x, y)
+        if getattr(self, "finished", False):
+            return self.directive  # a single finished behaviour holds its last directive
         handler = {"go": self._go, "pick": self._pick, "lift": self._lift}[self.word]
         self.directive = handler(x, y, yaw, student_pose)
         return self.directive
@@ -188,7 +233,7 @@ class Teacher:
     def _go(self, x, y, yaw, student):
         c = self.config
         wall = world_to_wall(x, y, yaw, self.arena)
-        if (wall.wall == "top" and wall.x_m < c.pick_max_x_m and abs(wall.y_m) < c.pick_max_abs_y_m
+        if getattr(self, "loop", True) and (wall.wall == "top" and wall.x_m < c.pick_max_x_m and abs(wall.y_m) < c.pick_max_abs_y_m
                 and abs(wall.phi_deg) < c.pick_max_abs_phi_deg):
             self._enter("pick", "line_up")
             return self._pick(x, y, yaw, student)
@@ -240,6 +285,8 @@ class Teacher:
         if abs(heading_error) > c.dock_heading_tol_deg:
             return self._turn_towards(heading_error)
         self._enter("lift", "back")
+        if self.finished:
+            return self.directive
         return self._lift(x, y, yaw, student)
 
     def _lift(self, x, y, yaw, student):

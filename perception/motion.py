@@ -158,3 +158,34 @@ def directive_agreement(inferred, true) -> DirectiveAgreement:
     n = int(with_truth.sum())
     correct = int(np.trace(with_truth[:, : len(DIRECTIVES)]))
     return DirectiveAgreement(correct / n if n else float("nan"), n, labels, confusion)
+
+
+def infer_directives_batch(
+    poses, dt_s: float, config: DirectiveConfig = DirectiveConfig()
+) -> np.ndarray:
+    """Vectorised :func:`infer_directive` over consecutive poses (N, 3).
+
+    Returns an array of N - 1 names: entry ``i`` explains the motion from pose ``i`` to ``i + 1``;
+    ``NO_DIRECTIVE`` where the robot stood still or a pose is not finite.
+    """
+    poses = np.asarray(poses, dtype=float)
+    if poses.ndim != 2 or poses.shape[1] != 3:
+        raise ValueError(f"poses must have shape (N, 3), got {poses.shape}")
+    if not np.isfinite(dt_s) or dt_s <= 0:
+        raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+    before, after = poses[:-1], poses[1:]
+    dyaw = wrap_radians(after[:, 2] - before[:, 2])
+    mid = before[:, 2] + 0.5 * dyaw
+    v = ((after[:, 0] - before[:, 0]) * np.cos(mid) + (after[:, 1] - before[:, 1]) * np.sin(mid))
+    v = v / dt_s
+    w = dyaw / dt_s
+    translation = np.abs(v) / config.forward_speed_mps
+    rotation = np.abs(w) / np.radians(config.turn_rate_deg_s)
+    names = np.where(
+        rotation > translation,
+        np.where(w > 0, "turn_left", "turn_right"),
+        np.where(v > 0, "forward", "backward"),
+    ).astype(object)
+    still = (np.maximum(translation, rotation) < config.min_fraction) | ~np.isfinite(v + w)
+    names[still] = NO_DIRECTIVE
+    return names.astype(str)

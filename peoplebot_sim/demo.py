@@ -1,0 +1,112 @@
+"""``peoplebot demo``: a video of the teacher looping go-pick-lift, and a JSON summary of the run."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+import time
+
+import imageio.v2 as imageio
+import numpy as np
+from tqdm import tqdm
+
+from peoplebot_sim import directives
+from peoplebot_sim.overlay import annotate
+from peoplebot_sim.rendering import FrameRenderer
+from peoplebot_sim.task import load
+
+
+@dataclasses.dataclass(frozen=True)
+class DemoConfig:
+    """What the demo renders.
+
+    Attributes:
+      seconds: simulated seconds.
+      width, height: video size in pixels (up to 1280x960).
+      seed: the environment's seed (teacher start and jitter).
+      camera: 'showcase' (oblique, whole arena) or 'overhead'.
+      speedup: playback speed; the video runs at ``speedup / control_timestep`` frames/s.
+      video: write the mp4 (False: the summary alone, much faster).
+      shadows: render shadows in the video.
+    """
+
+    seconds: float = 180.0
+    width: int = 640
+    height: int = 480
+    seed: int = 0
+    camera: str = "showcase"
+    speedup: float = 2.0
+    video: bool = True
+    shadows: bool = True
+
+    def __post_init__(self):
+        if not (np.isfinite(self.seconds) and self.seconds > 0):
+            raise ValueError(f"seconds must be a positive number, got {self.seconds!r}")
+        if self.camera not in ("showcase", "overhead"):
+            raise ValueError(f"unknown camera {self.camera!r}; allowed: showcase, overhead")
+        if not (np.isfinite(self.speedup) and self.speedup > 0):
+            raise ValueError(f"speedup must be positive, got {self.speedup!r}")
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or value <= 0 or value % 2:
+                raise ValueError(f"{name} must be a positive even number of pixels, got {value!r}")
+
+
+def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
+    """Runs the teacher for ``config.seconds``, writes the video (``out_path``, .mp4) and the summary
+    (same name, .json); returns the summary."""
+    out_path = pathlib.Path(out_path)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    env = load(seed=config.seed)
+    timestep = env.reset()
+    task = env.task
+    control_dt = task.control_timestep
+    n_steps = int(round(config.seconds / control_dt))
+    action = np.zeros(env.action_spec().shape)
+    counts = np.zeros(len(directives.WORDS), int)
+    start = time.perf_counter()
+    renderer = writer = None
+    try:
+        if config.video:
+            renderer = FrameRenderer(env.physics, config.width, config.height,
+                                     shadows=config.shadows, antialias=True)
+            writer = imageio.get_writer(
+                str(out_path), fps=config.speedup / control_dt, codec="libx264", quality=7,
+                macro_block_size=8, ffmpeg_log_level="error")
+        camera = "showcase" if config.camera == "showcase" else "overhead"
+        steps = tqdm(range(n_steps), desc="demo", unit="step", disable=not progress)
+        for _ in steps:
+            timestep = env.step(action)
+            word = directives.WORDS[int(timestep.observation["teacher_word"])]
+            directive = directives.DIRECTIVES[int(timestep.observation["teacher_directive"])]
+            counts[directives.word_index(word)] += 1
+            if writer is not None:
+                frame = renderer.render(camera)
+                caption = (f"t = {env.physics.data.time:6.1f} s   cycles "
+                           f"{task.teacher_controller.cycles_completed}")
+                writer.append_data(annotate(frame, word, directive, caption))
+    finally:
+        if writer is not None:
+            writer.close()
+        if renderer is not None:
+            renderer.close()
+    teacher = task.teacher_controller
+    simulated = float(env.physics.data.time)
+    summary = {
+        "simulated_seconds": simulated,
+        "control_steps": n_steps,
+        "cycles_completed": teacher.cycles_completed,
+        "cycles_per_10_minutes": teacher.cycles_completed * 600.0 / simulated,
+        "time_share": {w: float(c / max(n_steps, 1)) for w, c in zip(directives.WORDS, counts)},
+        "collisions": task.collisions,
+        "watchdog_recoveries": len(teacher.events),
+        "watchdog_events": [dataclasses.asdict(e) for e in teacher.events],
+        "seed": config.seed,
+        "video": str(out_path) if config.video else None,
+        "wall_clock_seconds": time.perf_counter() - start,
+        "config": dataclasses.asdict(config),
+    }
+    out_path.with_suffix(".json").write_text(json.dumps(summary, indent=2))
+    env.close()
+    return summary
