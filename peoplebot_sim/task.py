@@ -136,9 +136,15 @@ class ImitationTask(composer.Task):
     def _make_observables(self):
         c = self.config
         no_shadow = {"shadow": False}
+        named_qpos = lambda p, name: float(p.named.data.qpos[name][0])  # noqa: E731
         obs = {
             "student_pose": observable.Generic(self._student.planar_pose),
             "student_wall_pose": observable.Generic(lambda p: self._wall_pose(self._student, p)),
+            # Proprioception, as on the real robot: wheel encoders and head joint angles (rad).
+            "student_wheel_angles": observable.Generic(lambda p: np.array(
+                [named_qpos(p, "student/left_wheel"), named_qpos(p, "student/right_wheel")])),
+            "student_head_angles": observable.Generic(lambda p: np.array(
+                [named_qpos(p, "student/head_pan"), named_qpos(p, "student/head_tilt")])),
         }
         if self._teacher is not None:
             obs["teacher_pose"] = observable.Generic(self._teacher.planar_pose)
@@ -184,12 +190,25 @@ class ImitationTask(composer.Task):
         return 1.0
 
     # ------------------------------------------------------------------ episode
+    def set_start(self, student_pose=None, teacher_pose=None) -> None:
+        """Overrides the configured start poses ``(x, y, yaw)`` for the next episodes (None: back to
+        the configuration's)."""
+        for name, pose in (("student_pose", student_pose), ("teacher_pose", teacher_pose)):
+            if pose is not None and (len(pose) != 3 or not np.all(np.isfinite(pose))):
+                raise ValueError(f"{name} must be None or three finite numbers (x m, y m, yaw rad), "
+                                 f"got {pose!r}")
+        self._start_override = (student_pose, teacher_pose)
+
     def initialize_episode(self, physics, random_state):
         rng = np.random.default_rng(random_state.randint(2**31))
-        student_pose = self.config.student_pose or STUDENT_WATCH_POSE
+        student_override, teacher_override = getattr(self, "_start_override", (None, None))
+        student_pose = student_override or self.config.student_pose or STUDENT_WATCH_POSE
         self._student.set_planar_pose(physics, *student_pose)
+        physics.named.data.qpos["student/head_pan"] = 0.0
+        physics.named.data.qpos["student/head_tilt"] = 0.0
         if self._teacher is not None:
-            pose = self.config.teacher_pose or self.random_free_pose(rng, avoid=student_pose)
+            pose = (teacher_override or self.config.teacher_pose
+                    or self.random_free_pose(rng, avoid=student_pose))
             self._teacher.set_planar_pose(physics, *pose)
         self._object.set_pose(physics, position=np.array(entities.OBJECT_POSITION),
                               quaternion=np.array([1.0, 0, 0, 0]))

@@ -146,6 +146,9 @@ class PanTiltController:
       target_height_m: height of the point to centre on the target robot (default: the side
         markers').
       initial_pan_deg, initial_tilt_deg: the head's starting angles.
+      search_pan_deg, search_tilt_deg: with no target, the head sweeps its pan between
+        +-``search_pan_deg`` at ``search_tilt_deg`` (looking a little down, at robot-marker height a
+        few metres away) until the target is found; ``search_pan_deg=0`` holds still instead.
     """
 
     def __init__(
@@ -156,7 +159,21 @@ class PanTiltController:
         target_height_m: float = SIDE_MARKER_HEIGHT_M,
         initial_pan_deg: float = 0.0,
         initial_tilt_deg: float = 0.0,
+        search_pan_deg: float = 80.0,
+        search_tilt_deg: float = -10.0,
     ):
+        if not (np.isfinite(search_pan_deg) and 0.0 <= search_pan_deg <= limits.pan_max_deg):
+            raise ValueError(
+                f"search_pan_deg must be in [0, {limits.pan_max_deg}], got {search_pan_deg!r}"
+            )
+        if not (np.isfinite(search_tilt_deg)
+                and limits.tilt_min_deg <= search_tilt_deg <= limits.tilt_max_deg):
+            raise ValueError(
+                f"search_tilt_deg must be within the tilt limits, got {search_tilt_deg!r}"
+            )
+        self.search_pan_deg = float(search_pan_deg)
+        self.search_tilt_deg = float(search_tilt_deg)
+        self._search_direction = 1.0
         self.limits = limits
         self.mount = mount
         self.target_height_m = float(target_height_m)
@@ -168,22 +185,30 @@ class PanTiltController:
 
         Args:
           observer_pose: the student's own ``(x_m, y_m, yaw_rad)``, world frame.
-          target_xy: the tracked teacher position ``(x_m, y_m)``, world frame, or None (hold still).
+          target_xy: the tracked teacher position ``(x_m, y_m)``, world frame, or None (search).
           dt_s: control period, seconds (> 0).
         """
         if not np.isfinite(dt_s) or dt_s <= 0:
             raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
-        if target_xy is None:
-            return PanTiltCommand(self.pan_deg_, self.tilt_deg_, None, None, False)
         lim = self.limits
-        target = (float(target_xy[0]), float(target_xy[1]), self.target_height_m)
-        pan, tilt = aim_at(observer_pose, target, self.mount)
-        reachable = (
-            lim.pan_min_deg <= pan <= lim.pan_max_deg
-            and lim.tilt_min_deg <= tilt <= lim.tilt_max_deg
-        )
-        goal_pan = float(np.clip(pan, lim.pan_min_deg, lim.pan_max_deg))
-        goal_tilt = float(np.clip(tilt, lim.tilt_min_deg, lim.tilt_max_deg))
+        if target_xy is None:
+            if self.search_pan_deg == 0.0:
+                return PanTiltCommand(self.pan_deg_, self.tilt_deg_, None, None, False)
+            if self.pan_deg_ * self._search_direction >= self.search_pan_deg - 1e-9:
+                self._search_direction = -self._search_direction
+            goal_pan = self._search_direction * self.search_pan_deg
+            goal_tilt = self.search_tilt_deg
+            pan = tilt = None
+            reachable = False
+        else:
+            target = (float(target_xy[0]), float(target_xy[1]), self.target_height_m)
+            pan, tilt = aim_at(observer_pose, target, self.mount)
+            reachable = (
+                lim.pan_min_deg <= pan <= lim.pan_max_deg
+                and lim.tilt_min_deg <= tilt <= lim.tilt_max_deg
+            )
+            goal_pan = float(np.clip(pan, lim.pan_min_deg, lim.pan_max_deg))
+            goal_tilt = float(np.clip(tilt, lim.tilt_min_deg, lim.tilt_max_deg))
         max_pan, max_tilt = lim.pan_rate_deg_s * dt_s, lim.tilt_rate_deg_s * dt_s
         self.pan_deg_ += float(np.clip(goal_pan - self.pan_deg_, -max_pan, max_pan))
         self.tilt_deg_ += float(np.clip(goal_tilt - self.tilt_deg_, -max_tilt, max_tilt))

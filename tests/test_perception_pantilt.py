@@ -48,7 +48,7 @@ def test_limits_and_rates_are_enforced():
 
 
 def test_tracks_a_reachable_target_and_holds_without_one():
-    controller = PanTiltController()
+    controller = PanTiltController(search_pan_deg=0.0)
     for _ in range(20):
         command = controller.step((0.0, 0.0, 0.0), (2.0, 1.0), 0.1)
     assert command.reachable
@@ -56,6 +56,17 @@ def test_tracks_a_reachable_target_and_holds_without_one():
     assert command.tilt_deg == pytest.approx(command.target_tilt_deg)
     held = controller.step((0.0, 0.0, 0.0), None, 0.1)
     assert held.pan_deg == command.pan_deg and held.target_pan_deg is None
+
+
+def test_searches_by_sweeping_the_pan_within_its_rate_and_range():
+    controller = PanTiltController(search_pan_deg=60.0, search_tilt_deg=-10.0)
+    pans = [controller.step((0.0, 0.0, 0.0), None, 0.1).pan_deg for _ in range(60)]
+    steps = np.abs(np.diff([0.0, *pans]))
+    assert np.all(steps <= controller.limits.pan_rate_deg_s * 0.1 + 1e-9)
+    assert max(pans) == pytest.approx(60.0) and min(pans) == pytest.approx(-60.0)
+    assert controller.tilt_deg_ == pytest.approx(-10.0)
+    with pytest.raises(ValueError, match="search_pan_deg"):
+        PanTiltController(search_pan_deg=120.0)
 
 
 def test_bad_limits_raise():

@@ -1,0 +1,113 @@
+"""How the student knows where the robots are: the vision modes of the experiments.
+
+- ``truth``: the simulator's poses (the paper's setting).
+- ``overhead``: the overhead camera's frames, tracked by ``perception`` (both robots).
+- ``head``: the student's own pan-tilt camera, tracked by ``perception``; the camera's pose comes
+  from the student's own pose (wheel odometry from its known start) and its head angles, and a
+  pan-tilt controller keeps the teacher in view. The student's own pose is its odometry.
+
+``StudentVision`` reads only the environment's observations (camera frames, wheel encoders, head
+angles; the simulator's poses in ``truth`` mode) and camera calibrations, as a real robot would.
+Poses are world ``(x_m, y_m, yaw_rad)``, or None when the robot is not known (never seen, or its
+track was lost).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from peoplebot_sim import cameras
+from perception.odometry import WheelOdometry
+from perception.pantilt import PanTiltController, head_camera
+from perception.pipeline import Tracker
+
+VISION_MODES = ("truth", "overhead", "head")
+#: The camera observable each mode needs.
+CAMERA_OF_MODE = {"truth": None, "overhead": "overhead", "head": "head"}
+
+
+def check_vision_mode(mode: str) -> str:
+    if mode not in VISION_MODES:
+        raise ValueError(f"unknown vision mode {mode!r}; allowed: {', '.join(VISION_MODES)}")
+    return mode
+
+
+class Calibration:
+    """The student's camera calibrations, measured once from the simulator (as one would calibrate a
+    real camera): the overhead camera with its fixed pose, and the head camera's intrinsics."""
+
+    def __init__(self, physics, width: int, height: int):
+        self.overhead = cameras.camera_model(physics, "overhead", width, height)
+        self.head_intrinsics = cameras.camera_model(physics, "student/head_camera", width, height)
+
+
+class StudentVision:
+    """Estimates the teacher's and the student's own world poses once per control step.
+
+    Args:
+      mode: one of ``VISION_MODES``.
+      calibration: camera calibrations (needed by the camera modes).
+      watch_teacher: also estimate the teacher (False when the student performs alone).
+    """
+
+    def __init__(self, mode: str = "truth", calibration: Calibration | None = None,
+                 watch_teacher: bool = True):
+        self.mode = check_vision_mode(mode)
+        if mode != "truth" and calibration is None:
+            raise ValueError(f"vision mode {mode!r} needs a camera calibration")
+        self.calibration = calibration
+        self.watch_teacher = watch_teacher
+        robots = []
+        if watch_teacher:
+            robots.append("teacher")
+        if mode == "overhead":
+            robots.append("student")
+        self._robots = tuple(robots)
+        self.odometry = None
+        self.reset()
+
+    def reset(self, start_pose=None, wheel_angles=None) -> None:
+        """Starts afresh. The head mode's odometry starts from the student's known start pose and
+        wheel angles (it cannot update before they are given)."""
+        self.tracker = Tracker(robots=self._robots) if self._robots and self.mode != "truth" else None
+        self.head_command = (0.0, 0.0)
+        self.pantilt = PanTiltController()
+        self.odometry = None
+        if self.mode == "head" and start_pose is not None and wheel_angles is not None:
+            self.odometry = WheelOdometry(start_pose, *wheel_angles)
+
+    def update(self, observation: dict, time_s: float, dt: float) -> dict:
+        """Returns ``{'teacher': pose | None, 'student': pose | None}`` from one step's observation."""
+        if self.mode == "truth":
+            out = {"student": np.asarray(observation["student_pose"], dtype=float)}
+            if self.watch_teacher:
+                out["teacher"] = np.asarray(observation["teacher_pose"], dtype=float)
+            return out
+        if self.mode == "overhead":
+            out = {"teacher": None, "student": None}
+            tracked = self.tracker.update(observation["overhead_camera"], self.calibration.overhead,
+                                          time_s)
+            for robot, track in tracked.items():
+                out[robot] = None if track.track.pose is None else track.track.pose.copy()
+            return out
+        if self.odometry is None:
+            raise ValueError("the head mode needs reset(start_pose, wheel_angles) before update()")
+        own = self.odometry.update(*observation["student_wheel_angles"])
+        out = {"student": own, "teacher": None}
+        if self.watch_teacher:
+            pan, tilt = (math.degrees(a) for a in observation["student_head_angles"])
+            camera = head_camera(self.calibration.head_intrinsics, own, pan, tilt)
+            track = self.tracker.update(observation["head_camera"], camera, time_s)["teacher"]
+            if track.track.pose is not None:
+                out["teacher"] = track.track.pose.copy()
+            target = None if out["teacher"] is None else out["teacher"][:2]
+            command = self.pantilt.step(own, target, dt)
+            self.head_command = (math.radians(command.pan_deg), math.radians(command.tilt_deg))
+        return out
+
+
+def pose_or_nan(pose) -> np.ndarray:
+    """Returns the pose as an array, or NaNs when unknown."""
+    return np.full(3, np.nan) if pose is None else np.asarray(pose, dtype=float)

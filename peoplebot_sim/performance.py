@@ -1,0 +1,265 @@
+"""Performance on command (the paper's Fig. 4): the student is told a word and drives itself.
+
+At every control step the student observes its own pose (through the chosen vision mode), turns it
+into the wall frame, and the associator's motor area (reconstructed through W_td with the motor input
+omitted) gives the directive that drives its wheels. The teacher's controller, performing the same
+word on the same robot from the same starts, is the reference.
+
+Success, per trial (all in ``SuccessConfig``):
+
+- ``go``: from a random free pose anywhere, for 60 s: never touches a wall or the table, visits at
+  least two wall areas, and keeps moving (at least 0.2 m in every 10 s window).
+- ``pick`` (table wall): from a random pose in the table's wall area, 1.0-1.6 m from the wall, at most
+  0.8 m either side of its middle, facing it within 45 deg: within 60 s reaches the teacher's
+  docked pose within 15 cm and 20 deg, without touching anything.
+- ``pick`` (other walls): the same start relative to one of the three other walls; success is the
+  equivalent docked pose at that wall (the wall frame cannot tell walls apart, so the student docks
+  where it is).
+- ``lift``: from the docked pose: within 60 s the gripper's tip is at least 0.5 m from the table and
+  the robot faces the arena's centre within 45 deg, without touching anything.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from associator import encoding
+from associator.network import Associator
+from peoplebot_sim import directives
+from peoplebot_sim.observers import StudentVision, pose_or_nan
+from peoplebot_sim.task import ImitationTask, robot_touches_obstacle
+from peoplebot_sim.teacher import TABLE_BOX, Teacher
+from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall, wrap_degrees
+
+ROWS = ("go", "pick", "pick_other_wall", "lift")
+ROW_WORD = {"go": "go", "pick": "pick", "pick_other_wall": "pick", "lift": "lift"}
+POLICIES = ("student", "teacher")
+#: The paper's Fig. 4 start: top middle of the arena, facing up (world x, y metres, yaw radians).
+FIG4_START = (0.0, 0.6, math.pi / 2)
+
+
+@dataclasses.dataclass(frozen=True)
+class SuccessConfig:
+    """The success definitions' numbers (metres, degrees, seconds)."""
+
+    seconds: float = 60.0
+    go_min_wall_areas: int = 2
+    go_window_s: float = 10.0
+    go_min_window_travel_m: float = 0.2
+    dock_position_tol_m: float = 0.15
+    dock_heading_tol_deg: float = 20.0
+    lift_min_gap_m: float = 0.5
+    lift_heading_tol_deg: float = 45.0
+    gripper_reach_m: float = 0.365
+
+
+class StudentAgent:
+    """The student as a policy for the dm-control environment: it observes (through its vision
+    mode), encodes its own pose in the wall frame, and drives its wheels from the associator's motor
+    area (reconstructed through W_td with the motor input omitted) for the instructed word.
+
+    Args:
+      model: a fitted ``Associator``.
+      word: the instruction.
+      vision: how the student sees (``StudentVision`` with ``watch_teacher=False``).
+      encoder: the vision encoder the model was trained with.
+      action_spec: the environment's action spec (actions are clipped into it).
+      drive: wheel speeds of the directives.
+      graded: drive with the graded motor activations instead of the winning directive.
+    """
+
+    def __init__(self, model: Associator, word: str, vision: StudentVision,
+                 encoder: encoding.VisionEncoder, action_spec,
+                 drive: directives.DriveSpeeds = directives.DriveSpeeds(), graded: bool = False,
+                 arena: ArenaGeometry = ArenaGeometry()):
+        self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
+        self.language = encoding.encode_word(word)
+        self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
+        self.reset()
+
+    def reset(self, timestep=None, start_pose=None) -> None:
+        """Starts a trial: the head mode's odometry starts from the known ``start_pose``."""
+        wheels = None if timestep is None else timestep.observation["student_wheel_angles"]
+        self.vision.reset(start_pose, wheels)
+        self.directive, self.motor, self.own_pose = None, np.zeros(4), None
+        self.time_s = 0.0
+
+    def command(self, own_pose) -> tuple[float, float]:
+        """Returns ``(linear m/s, yaw rate rad/s)`` for an own-pose estimate (None: stand still)."""
+        if own_pose is None:
+            self.directive, self.motor = None, np.zeros(4)
+            return 0.0, 0.0
+        wall = world_to_wall(*own_pose, self.arena)
+        vision = self.encoder.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True)
+        result = self.model.perform(vision, self.language)
+        self.directive, self.motor = result.directive, result.motor
+        if self.graded:
+            return self.drive.graded_command(result.motor)
+        return self.drive.command(result.directive)
+
+    def step(self, timestep, dt: float = 0.1) -> np.ndarray:
+        """Returns the action for one environment time step."""
+        self.own_pose = self.vision.update(timestep.observation, self.time_s, dt)["student"]
+        self.time_s += dt
+        return make_action(self.spec, self.command(self.own_pose), self.vision.head_command)
+
+
+def make_action(spec, drive_command, head_command=(0.0, 0.0)) -> np.ndarray:
+    """Returns an action within ``spec``: wheels ``(linear, turn)``, gripper at rest, head angles."""
+    action = np.zeros(spec.shape)
+    action[0], action[1] = drive_command
+    action[4], action[5] = head_command
+    return np.clip(action, spec.minimum, spec.maximum)
+
+
+class TeacherAgent:
+    """The teacher's controller performing one word on the student's robot: the reference row. It
+    reads the true pose (the teacher is a scripted demonstrator, not a learner)."""
+
+    def __init__(self, word: str, action_spec, drive: directives.DriveSpeeds = directives.DriveSpeeds(),
+                 arena: ArenaGeometry = ArenaGeometry(), rng=None):
+        self.word, self.spec, self.drive, self.arena, self._rng = word, action_spec, drive, arena, rng
+        self.reset()
+
+    def reset(self, timestep=None, start_pose=None) -> None:
+        self.controller = Teacher(arena=self.arena, rng=self._rng)
+        self.controller.begin(self.word, loop=False)
+        self.directive, self.motor = None, None
+
+    def step(self, timestep, dt: float = 0.1) -> np.ndarray:
+        pose = timestep.observation["student_pose"]
+        self.directive = self.controller.step(pose, None, dt)
+        return make_action(self.spec, self.drive.command(self.directive))
+
+    @property
+    def finished(self) -> bool:
+        return self.controller.finished
+
+
+def sample_start(row: str, rng: np.random.Generator, arena: ArenaGeometry = ArenaGeometry(),
+                 task: ImitationTask | None = None) -> tuple[tuple, str]:
+    """Returns a random start ``(x, y, yaw)`` for a row and the wall its success refers to."""
+    if row == "go":
+        h = arena.half_side_m - 0.6
+        while True:
+            x, y = rng.uniform(-h, h, size=2)
+            if not (abs(x) < 0.5 + 0.6 and y > TABLE_BOX[2] - 0.6):
+                return (float(x), float(y), float(rng.uniform(-math.pi, math.pi))), "top"
+    if row in ("pick", "pick_other_wall"):
+        wall = "top" if row == "pick" else str(rng.choice(["right", "bottom", "left"]))
+        pose = WallPose(float(rng.uniform(1.0, 1.6)), float(rng.uniform(-0.8, 0.8)),
+                        float(rng.uniform(-45.0, 45.0)), wall)
+        return wall_to_world(pose, arena), wall
+    if row == "lift":
+        dock = Teacher(arena=arena).dock_pose
+        return (dock[0] + float(rng.normal(0, 0.02)), dock[1] + float(rng.normal(0, 0.02)),
+                dock[2] + math.radians(float(rng.normal(0, 2.0)))), "top"
+    raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
+
+
+def dock_pose_at(wall: str, arena: ArenaGeometry = ArenaGeometry()) -> tuple:
+    """Returns the docked pose ``(x, y, yaw)`` in front of the middle of ``wall``."""
+    return wall_to_world(WallPose(Teacher(arena=arena).config.dock_x_m, 0.0, 0.0, wall), arena)
+
+
+class SuccessMonitor:
+    """Follows one trial and decides its success by the row's definition."""
+
+    def __init__(self, row: str, wall: str, dt: float, config: SuccessConfig = SuccessConfig(),
+                 arena: ArenaGeometry = ArenaGeometry()):
+        self.row, self.wall, self.dt, self.config, self.arena = row, wall, dt, config, arena
+        self.touched = False
+        self.reached = False
+        self.areas: set[str] = set()
+        self.positions: list[tuple[float, float]] = []
+        self.dock = dock_pose_at(wall, arena)
+
+    def update(self, true_pose, touching: bool) -> bool:
+        """Records one step of the true pose; returns True when the trial has already succeeded."""
+        c = self.config
+        x, y, yaw = (float(v) for v in true_pose)
+        self.touched |= touching
+        self.positions.append((x, y))
+        self.areas.add(world_to_wall(x, y, yaw, self.arena).wall)
+        if self.touched or self.row == "go":
+            return False
+        if self.row in ("pick", "pick_other_wall"):
+            dx, dy = x - self.dock[0], y - self.dock[1]
+            heading = abs(float(wrap_degrees(math.degrees(yaw - self.dock[2]))))
+            if math.hypot(dx, dy) <= c.dock_position_tol_m and heading <= c.dock_heading_tol_deg:
+                self.reached = True
+        elif self.row == "lift":
+            tip_x = x + c.gripper_reach_m * math.cos(yaw)
+            tip_y = y + c.gripper_reach_m * math.sin(yaw)
+            x0, x1, y0, y1 = TABLE_BOX
+            gap = math.hypot(max(x0 - tip_x, 0.0, tip_x - x1), max(y0 - tip_y, 0.0, tip_y - y1))
+            facing = abs(float(wrap_degrees(math.degrees(math.atan2(-y, -x) - yaw))))
+            if gap >= c.lift_min_gap_m and facing <= c.lift_heading_tol_deg:
+                self.reached = True
+        return self.reached
+
+    def success(self) -> bool:
+        """Returns the trial's verdict (call at its end)."""
+        if self.touched:
+            return False
+        if self.row != "go":
+            return self.reached
+        c = self.config
+        window = max(1, int(round(c.go_window_s / self.dt)))
+        p = np.asarray(self.positions)
+        if len(p) <= window:
+            return False
+        travel = np.hypot(*(p[window:] - p[:-window]).T)
+        return len(self.areas) >= c.go_min_wall_areas and bool(np.all(travel >= c.go_min_window_travel_m))
+
+
+@dataclasses.dataclass
+class TrialResult:
+    """One trial: its row, policy, start, verdict, duration and the true and estimated traces."""
+
+    row: str
+    policy: str
+    start: tuple
+    wall: str
+    success: bool
+    seconds: float
+    touched: bool
+    trace: np.ndarray  # (n, 3) true world poses
+    estimate: np.ndarray  # (n, 3) the student's own-pose estimates (NaN when unknown)
+    directives: list
+
+
+def run_trial(env, agent, row: str, start, wall: str, *, config: SuccessConfig = SuccessConfig(),
+              stop_on_success: bool = True, frame_callback=None) -> TrialResult:
+    """Runs one trial of ``agent`` in a student-only environment ``env`` from ``start``.
+
+    ``frame_callback(env, agent)`` is called after every step (for videos).
+    """
+    task = env.task
+    task.set_start(student_pose=start)
+    timestep = env.reset()
+    agent.reset(timestep, start)
+    dt = task.control_timestep
+    monitor = SuccessMonitor(row, wall, dt, config)
+    trace, estimates, chosen = [], [], []
+    n_steps = int(round(config.seconds / dt))
+    for _ in range(n_steps):
+        action = agent.step(timestep, dt)
+        timestep = env.step(action)
+        true_pose = np.asarray(timestep.observation["student_pose"], dtype=float)
+        trace.append(true_pose)
+        estimates.append(pose_or_nan(getattr(agent, "own_pose", true_pose)))
+        chosen.append(agent.directive)
+        touching = robot_touches_obstacle(env.physics, task.student, task)
+        succeeded = monitor.update(true_pose, touching)
+        if frame_callback is not None:
+            frame_callback(env, agent)
+        if (succeeded and stop_on_success) or getattr(agent, "finished", False) or timestep.last():
+            break
+    return TrialResult(row, "teacher" if isinstance(agent, TeacherAgent) else "student",
+                       tuple(float(v) for v in start), wall, monitor.success(),
+                       len(trace) * dt, monitor.touched, np.asarray(trace),
+                       np.asarray(estimates), chosen)

@@ -1,0 +1,151 @@
+"""Recognition (the paper's Table I): the teacher loops, the student names what it sees.
+
+The language area is omitted; the student gets the teacher's pose (truth, or estimated through its
+vision) and motor directive (the teacher's, or inferred from the observed motion), and the word whose
+code best matches the language area reconstructed through W_td is compared with the true one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from tqdm import tqdm
+
+from associator import encoding
+from associator.network import Associator
+from peoplebot_sim import directives
+from peoplebot_sim.learning import encode_stream, inferred_directives
+from peoplebot_sim.observers import Calibration, StudentVision, pose_or_nan
+from peoplebot_sim.performance import make_action
+from peoplebot_sim.streams import TeacherStream
+from peoplebot_sim.task import load
+from perception.wallframe import world_to_wall_batch
+
+#: The paper's Table I: rows performing, columns recognised (fractions) and the total counts.
+PAPER_TABLE_I = {
+    "confusion": {
+        "go": {"go": 0.5451, "pick": 0.4426, "lift": 0.0123},
+        "pick": {"go": 0.0308, "pick": 0.9647, "lift": 0.0045},
+        "lift": {"go": 0.0089, "pick": 0.1223, "lift": 0.8688},
+    },
+    "counts": {"go": 746211, "pick": 111495, "lift": 142195},
+}
+
+
+def confusion_counts(true_words: np.ndarray, recognised: np.ndarray) -> np.ndarray:
+    """Returns counts[true][recognised], shape (3, 3), from word indices."""
+    n = len(directives.WORDS)
+    return np.bincount(true_words.astype(int) * n + recognised.astype(int),
+                       minlength=n * n).reshape(n, n)
+
+
+def table(counts: np.ndarray) -> dict:
+    """Returns the confusion as nested dicts: fractions per true word, and counts."""
+    words = directives.WORDS
+    totals = counts.sum(axis=1)
+    return {
+        "confusion": {t: {r: float(counts[i, j] / totals[i]) if totals[i] else None
+                          for j, r in enumerate(words)} for i, t in enumerate(words)},
+        "counts": {t: int(totals[i]) for i, t in enumerate(words)},
+        "counts_matrix": {t: {r: int(counts[i, j]) for j, r in enumerate(words)}
+                          for i, t in enumerate(words)},
+    }
+
+
+def recognise_stream(model: Associator, stream: TeacherStream, encoder: encoding.VisionEncoder,
+                     motor_source: str = "teacher", dt: float = 0.1,
+                     chunk: int = 200_000) -> np.ndarray:
+    """Returns the recognised word index for every step of a stream (language omitted)."""
+    out = np.empty(len(stream), np.int8)
+    vocabulary = {w: i for i, w in enumerate(directives.WORDS)}
+    for start in range(0, len(stream), chunk):
+        stop = min(start + chunk, len(stream))
+        vision, _, motor, _ = encode_stream(stream, encoder, motor_source, dt, start, stop)
+        words = model.recognise_batch(vision, motor).words
+        out[start:stop] = [vocabulary[w] for w in words]
+    return out
+
+
+@dataclasses.dataclass
+class ObservedStream:
+    """A teacher stream seen through the student's vision, with the truth beside it.
+
+    Attributes:
+      truth: the stream with the simulator's poses.
+      observed: the same steps with the poses the student estimated (rows of NaN where the teacher
+        was not known; use ``seen``).
+      seen: (n,) bool, the student had a pose estimate of the teacher.
+    """
+
+    truth: TeacherStream
+    observed: TeacherStream
+    seen: np.ndarray
+
+
+def watch_with_vision(seed: int, n_steps: int, vision_mode: str, width: int = 320,
+                      height: int = 240, progress: bool = True) -> ObservedStream:
+    """Runs the environment with the teacher looping and the student watching through its camera
+    (``vision_mode`` 'overhead' or 'head'); returns what it saw beside the truth."""
+    if vision_mode not in ("overhead", "head"):
+        raise ValueError(f"vision_mode must be 'overhead' or 'head', got {vision_mode!r}")
+    if n_steps <= 0:
+        raise ValueError(f"n_steps must be positive, got {n_steps}")
+    env = load(seed=seed, cameras=(vision_mode,), width=width, height=height)
+    timestep = env.reset()
+    calibration = Calibration(env.physics, width, height)
+    vision = StudentVision(vision_mode, calibration, watch_teacher=True)
+    start = np.asarray(timestep.observation["student_pose"])
+    vision.reset(start, timestep.observation["student_wheel_angles"])
+    spec = env.action_spec()
+    dt = env.task.control_timestep
+    truth_world = np.empty((n_steps, 3))
+    seen_world = np.full((n_steps, 3), np.nan)
+    word = np.empty(n_steps, np.int8)
+    directive = np.empty(n_steps, np.int8)
+    bar = tqdm(total=n_steps, desc=f"watching ({vision_mode} camera)", unit="step",
+               disable=not progress)
+    for i in range(n_steps):
+        # The observation at this step: the teacher's pose now and the directive it now chooses.
+        # The pose at the step's start (seen and true); the word and directive the teacher chooses
+        # there are reported by the observation after the step.
+        estimate = vision.update(timestep.observation, i * dt, dt)["teacher"]
+        seen_world[i] = pose_or_nan(estimate)
+        truth_world[i] = timestep.observation["teacher_pose"]
+        timestep = env.step(make_action(spec, (0.0, 0.0), vision.head_command))
+        word[i] = timestep.observation["teacher_word"]
+        directive[i] = timestep.observation["teacher_directive"]
+        bar.update(1)
+    bar.close()
+    env.close()
+    changed = np.concatenate([[False], directive[1:] != directive[:-1]])
+    truth = _stream(truth_world, word, directive, changed)
+    observed = _stream(seen_world, word, directive, changed)
+    return ObservedStream(truth, observed, np.all(np.isfinite(seen_world), axis=1))
+
+
+def _stream(pose_world, word, directive, changed) -> TeacherStream:
+    finite = np.all(np.isfinite(pose_world), axis=1)
+    wall = np.full_like(pose_world, np.nan)
+    if np.any(finite):
+        x, y, phi, _ = world_to_wall_batch(*pose_world[finite].T)
+        wall[finite] = np.column_stack([x, y, phi])
+    return TeacherStream(pose_world.astype(np.float32), wall.astype(np.float32), word.copy(),
+                         directive.copy(), changed.copy())
+
+
+def recognise_observed(model: Associator, observed: ObservedStream, encoder, motor_source: str,
+                       dt: float = 0.1) -> dict:
+    """Recognition on the steps the student saw, from its estimates and, paired, from the truth."""
+    seen = observed.seen
+    rows = np.flatnonzero(seen)
+    out = {"steps": int(len(seen)), "seen_fraction": float(seen.mean()) if len(seen) else 0.0}
+    for name, stream in (("vision", observed.observed), ("truth_same_steps", observed.truth)):
+        subset = TeacherStream(*(getattr(stream, f.name)[rows]
+                                 for f in dataclasses.fields(TeacherStream)))
+        if motor_source == "vision":
+            inferred = inferred_directives(stream.pose_world.astype(float), dt)[rows]
+            subset.directive = inferred
+        recognised = recognise_stream(model, subset, encoder, "teacher", dt)
+        out[name] = table(confusion_counts(subset.word, recognised))
+    return out
