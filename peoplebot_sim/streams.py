@@ -5,8 +5,9 @@ spends most of each step on observation and hook bookkeeping; a stream needs onl
 word and its directive, so this module steps the same compiled model with ``mujoco.mj_step`` directly,
 driving the teacher with the same controller and the same wheel commands as ``ImitationTask``.
 The student stands still at its watching spot. Since nothing in a stream touches the student or the
-object on the table, both are frozen in place (collisions off, gravity compensated) to save the
-contact work of two resting bodies: the teacher's physics is unchanged.
+object on the table, both are frozen in place (collisions off, their joint positions and velocities
+held at their start values every control step) to save the contact work of two resting bodies: the
+teacher's physics is unchanged.
 """
 
 from __future__ import annotations
@@ -19,6 +20,9 @@ import numpy as np
 from peoplebot_sim import directives
 from peoplebot_sim.task import ImitationTask, TaskConfig
 from perception.wallframe import world_to_wall
+
+_QPOS_SIZE = {0: 7, 1: 4, 2: 1, 3: 1}  # free, ball, slide, hinge
+_DOF_SIZE = {0: 6, 1: 3, 2: 1, 3: 1}
 
 STREAM_FIELDS = ("x_world", "y_world", "yaw", "x_wall", "y_wall", "phi_deg", "word", "directive",
                  "motor_changed")
@@ -77,14 +81,25 @@ class StreamGenerator:
         self.task.after_compile(self.physics, np.random.RandomState(seed))
         self.task.initialize_episode(self.physics, np.random.RandomState(seed))
         bind = self.physics.bind
+        model = self.physics.model
+        frozen_roots = set()
         for entity in (self.task.student, self.task._object):
             for geom in entity.mjcf_model.find_all("geom"):
                 bind(geom).contype = 0
                 bind(geom).conaffinity = 0
-            for body in entity.mjcf_model.find_all("body"):
-                bind(body).gravcomp = 1.0
+            body = entity.mjcf_model.find_all("body")[0] if entity is self.task._object \
+                else entity.root_body
+            frozen_roots.add(int(model.body_rootid[bind(body).element_id]))
+        joints = [j for j in range(model.njnt) if model.body_rootid[model.jnt_bodyid[j]] in frozen_roots]
+        self._frozen_qpos = np.concatenate([
+            np.arange(model.jnt_qposadr[j], model.jnt_qposadr[j] + _QPOS_SIZE[model.jnt_type[j]])
+            for j in joints])
+        self._frozen_dof = np.concatenate([
+            np.arange(model.jnt_dofadr[j], model.jnt_dofadr[j] + _DOF_SIZE[model.jnt_type[j]])
+            for j in joints])
         self._m, self._d = self.physics.model.ptr, self.physics.data.ptr
         mujoco.mj_forward(self._m, self._d)
+        self._frozen_values = self._d.qpos[self._frozen_qpos].copy()
         base = bind(self.task.teacher.root_body).element_id
         frame = self.physics.model.body_rootid[base]  # the attachment frame, child of the world
         freejoint = self.physics.model.body_jntadr[frame]
@@ -160,6 +175,8 @@ class StreamGenerator:
             directive[i] = directive_ids[name]
             changed[i] = self._previous is not None and name != self._previous
             self._previous = name
+            d.qpos[self._frozen_qpos] = self._frozen_values
+            d.qvel[self._frozen_dof] = 0.0
             mujoco.mj_step(m, d, self._substeps)
             if progress is not None and (i + 1) % 1000 == 0:
                 progress(1000)
