@@ -7,12 +7,11 @@ of 768 units numbered row-major, ``W_bu_`` is (768, 180) and ``W_td_`` is (180, 
 
 from __future__ import annotations
 
-import dataclasses
 from typing import NamedTuple
 
 import numpy as np
 
-from associator import encoding
+from associator import _fast, encoding
 from associator.encoding import (
     DIRECTIVES,
     LANGUAGE_SLICE,
@@ -73,15 +72,6 @@ class BatchPerformance(NamedTuple):
     directives: np.ndarray
     motor: np.ndarray
     winners: np.ndarray
-
-
-@dataclasses.dataclass(frozen=True)
-class _Window:
-    """The truncated envelope around one hidden unit: a rectangle of the grid and its weights."""
-
-    rows: slice
-    cols: slice
-    weights: np.ndarray  # (n_rows, n_cols, 1)
 
 
 class Associator:
@@ -221,13 +211,14 @@ class Associator:
 
     @property
     def W_bu_(self) -> np.ndarray:  # noqa: N802 (the paper's name)
-        """Bottom-up weights, shape (768, 180): row j is hidden unit j's input weights."""
-        return self._w_bu.reshape(self.n_hidden, N_INPUT)
+        """Bottom-up weights, shape (768, 180): row j is hidden unit j's input weights (a copy;
+        hidden units are numbered row-major on the grid)."""
+        return self._w_bu[self._layout.storage_of_grid]
 
     @property
     def W_td_(self) -> np.ndarray:  # noqa: N802
-        """Top-down weights, shape (180, 768) (a transposed view of the (768, 180) storage)."""
-        return self._w_td_t.reshape(self.n_hidden, N_INPUT).T
+        """Top-down weights, shape (180, 768) (a copy, hidden units numbered row-major)."""
+        return self._w_td_t[self._layout.storage_of_grid].T
 
     @property
     def n_hidden(self) -> int:
@@ -250,34 +241,39 @@ class Associator:
         self._set_state(w_bu.astype(dtype), w_td_t.astype(dtype), 0, None)
 
     def _set_state(self, w_bu3, w_td_t3, n_steps, rng_state) -> None:
-        """Installs learned state (also used by persistence)."""
+        """Installs learned state (also used by persistence).
+
+        ``w_bu3`` and ``w_td_t3`` are (rows, cols, 180) in grid order; they are stored with the
+        hidden units in the order of ``_fast.Layout`` (envelope windows contiguous).
+        """
         self._validate_params()
-        self._w_bu = np.ascontiguousarray(w_bu3)
-        self._w_td_t = np.ascontiguousarray(w_td_t3)
+        self._build_windows()
+        order = self._layout.grid_of_storage
+        self._w_bu = np.ascontiguousarray(w_bu3.reshape(self.n_hidden, N_INPUT)[order])
+        self._w_td_t = np.ascontiguousarray(w_td_t3.reshape(self.n_hidden, N_INPUT)[order])
         self.n_steps_ = int(n_steps)
         if rng_state is not None:
             self.rng_ = rng_state
         self.vocabulary_codes_ = encoding.encode_words(list(self.vocabulary))
-        self._build_windows()
         self._tables = None
+        self._fast_loop = None
+
+    def __getstate__(self) -> dict:
+        """Returns the instance dict without the fast loop's views (rebuilt when needed)."""
+        state = self.__dict__.copy()
+        state.pop("_fast_loop", None)
+        return state
 
     def _build_windows(self) -> None:
-        rows, cols = self.hidden_shape
+        """Computes the storage layout and the envelope of every winner, (768, 768) grid order."""
         sigma = float(self.envelope_sigma)
-        half = int(np.ceil(self.envelope_cutoff * sigma))
-        dtype = np.dtype(self.dtype)
-        self._windows = []
-        envelope = np.zeros((rows * cols, rows, cols))
-        for k in range(rows * cols):
-            r, c = divmod(k, cols)
-            r0, r1 = max(r - half, 0), min(r + half + 1, rows)
-            c0, c1 = max(c - half, 0), min(c + half + 1, cols)
-            dr = np.arange(r0, r1) - r
-            dc = np.arange(c0, c1) - c
-            g = np.exp(-0.5 * (dr[:, None] ** 2 + dc[None, :] ** 2) / sigma**2)
-            self._windows.append(_Window(slice(r0, r1), slice(c0, c1), g[..., None].astype(dtype)))
-            envelope[k, r0:r1, c0:c1] = g
-        self._envelope = envelope.reshape(rows * cols, rows * cols).astype(dtype)
+        self._layout = _fast.Layout.build(self.hidden_shape, sigma, float(self.envelope_cutoff))
+        envelope = np.zeros((self.n_hidden, self.n_hidden))
+        layout = self._layout
+        for i, g in enumerate(layout.envelopes):
+            run = layout.grid_of_storage[layout.starts[i] : layout.stops[i]]
+            envelope[layout.grid_of_storage[i], run] = g
+        self._envelope = envelope.astype(np.dtype(self.dtype))
 
     def hidden_code(self, winners) -> np.ndarray:
         """Returns the competitive codes r^c of winning units, shape (n, 768) ((768,) for one)."""
@@ -347,14 +343,18 @@ class Associator:
         r~^c = envelope(argmax r~),
         dW_bu = +-epsilon' r~^c (z^s - W_bu), then W_bu >= 0 and unit-length rows.
         """
-        if self.sleep_sign == "self_organising" and self.sleeps_per_wake == 1:
+        fast = (
+            self.sleep_sign == "self_organising" and self.sleeps_per_wake == 1 and self.epsilon < 1
+        )
+        if fast:
             self._train_fast(z, changed)
         else:
             self._train_general(z, changed)
         self.n_steps_ += z.shape[0]
 
     def _draw_dreams(self, n: int) -> np.ndarray:
-        """Returns the random hidden centres of the sleep phases, shape (n, sleeps_per_wake).
+        """Returns the random hidden centres of the sleep phases, shape (n, sleeps_per_wake),
+        grid indices.
 
         One double per sleep phase, drawn up front: the generator's stream is then the same for any
         split of the samples into calls.
@@ -364,101 +364,62 @@ class Associator:
         return np.minimum((u * n_hidden).astype(np.int64), n_hidden - 1)
 
     def _train_general(self, z: np.ndarray, changed: np.ndarray) -> None:
-        """Any sleep sign and number of sleeps: straightforward per-phase updates on the windows."""
+        """Any sleep sign and number of sleeps: straightforward per-phase updates on the windows
+        (each a contiguous run of storage rows, envelope 0 outside the window)."""
         dtype = self._w_bu.dtype
         n = z.shape[0]
-        w_bu3, w_td3 = self._w_bu, self._w_td_t
-        w_bu2 = w_bu3.reshape(self.n_hidden, N_INPUT)
-        windows = self._windows
-        dreams = self._draw_dreams(n)
+        w_bu, w_td = self._w_bu, self._w_td_t
+        layout = self._layout
+        starts, stops = layout.starts.tolist(), layout.stops.tolist()
+        envelopes = [g.astype(dtype) for g in layout.envelopes]
+        dreams = layout.storage_of_grid[self._draw_dreams(n)]
+        factors = _fast.schedule(self, n)
         zc = z.astype(dtype)
         sign = 1.0 if self.sleep_sign == "self_organising" else -1.0
         eta, epsilon, boost = float(self.eta), float(self.epsilon), float(self.motor_change_boost)
+        tiny = np.finfo(dtype).tiny
         for t in range(n):
-            factor = self.learning_rate_factor(self.n_steps_ + t)
+            factor = float(factors[t])
             if factor == 0.0:
                 continue
             zt = zc[t]
-            win = windows[int(np.argmax(w_bu2 @ zt))]
-            block = w_td3[win.rows, win.cols]
-            recon = np.einsum("abi,abj->j", win.weights, block)
+            k = int(np.argmax(w_bu @ zt))
+            g = envelopes[k]
+            block = w_td[starts[k] : stops[k]]
             rate = eta * factor * (boost if changed[t] else 1.0)
-            block += (rate * win.weights) * (zt - recon)
+            block += (rate * g)[:, None] * (zt - g @ block)
             np.maximum(block, 0, out=block)
-            for dream_centre in dreams[t]:
-                dream = windows[dream_centre]
-                z_sleep = np.einsum("abi,abj->j", dream.weights, w_td3[dream.rows, dream.cols])
-                win = windows[int(np.argmax(w_bu2 @ z_sleep))]
-                block = w_bu3[win.rows, win.cols]
-                block += (sign * epsilon * factor * win.weights) * (z_sleep - block)
+            for dream in dreams[t]:
+                z_sleep = envelopes[dream] @ w_td[starts[dream] : stops[dream]]
+                k = int(np.argmax(w_bu @ z_sleep))
+                g = envelopes[k]
+                block = w_bu[starts[k] : stops[k]]
+                block += (sign * epsilon * factor * g)[:, None] * (z_sleep - block)
                 np.maximum(block, 0, out=block)
-                norm = np.sqrt(np.einsum("abi,abi->ab", block, block))[..., None]
-                block /= np.maximum(norm, np.finfo(dtype).tiny)
+                norm = np.sqrt(np.einsum("ij,ij->i", block, block))
+                # Rows outside the window are unchanged: leave them exactly as they are.
+                norm[g == 0] = 1.0
+                block /= np.maximum(norm, tiny)[:, None]
 
     def _train_fast(self, z: np.ndarray, changed: np.ndarray) -> None:
-        """The default case (self-organising sign, one sleep per wake) with fewer passes.
+        """The default case (self-organising sign, one sleep per wake, epsilon < 1), equal to
+        ``_train_general`` up to rounding, in fewer and cheaper numpy calls (``_fast.FastLoop``):
 
-        Equal to ``_train_general`` up to rounding: the sleep's product W_bu z^s and the next wake's
-        W_bu z_{t+1} share one pass over W_bu, and the next wake's activations of the units the
-        sleep just changed are then recomputed; the sleep update (1 - a) w + a z^s of non-negative
-        w and z^s is non-negative, so its rectification is skipped.
+        - the sleep's product W_bu z^s and the next wake's W_bu z share one dense pass;
+        - the sleep update (1 - a) w + a z^s of non-negative terms needs no rectification, and
+          with d = a / (1 - a) its normalised result is c (w + d z^s) with
+          c = (1 + 2 d w.z^s + d^2 |z^s|^2)^(-1/2) (|w| = 1): w.z^s comes from the dense pass,
+          so no norms are computed, and the next wake's activations of the changed rows are
+          c (w.z + d z^s.z) without another product.
         """
-        dtype = self._w_bu.dtype
-        n = z.shape[0]
-        rows, cols = (int(v) for v in self.hidden_shape)
-        w_bu3, w_td3 = self._w_bu, self._w_td_t
-        w_bu2 = w_bu3.reshape(rows * cols, N_INPUT)
-        windows = self._windows
-        dreams = self._draw_dreams(n)[:, 0]
-        zc = np.ascontiguousarray(z, dtype=dtype)
-        eta, epsilon, boost = float(self.eta), float(self.epsilon), float(self.motor_change_boost)
-        pair = np.zeros((N_INPUT, 2), dtype=dtype)  # columns: z^s of this step, z of the next
-        products = np.zeros((rows * cols, 2), dtype=dtype)
-        products3 = products.reshape(rows, cols, 2)
-        err = np.empty(N_INPUT, dtype=dtype)
-        argmax, maximum, multiply, einsum, sqrt = (
-            np.argmax,
-            np.maximum,
-            np.multiply,
-            np.einsum,
-            np.sqrt,
-        )
-        r = w_bu2 @ zc[0] if n else None
-        for t in range(n):
-            factor = self.learning_rate_factor(self.n_steps_ + t)
-            if factor == 0.0:
-                if t + 1 < n:
-                    r = w_bu2 @ zc[t + 1]
-                continue
-            zt = zc[t]
-            # Wake: r = W_bu z (computed during the previous step), r^c around the winner.
-            win = windows[int(argmax(r))]
-            g = win.weights
-            block = w_td3[win.rows, win.cols]
-            multiply(
-                zt - einsum("abi,abj->j", g, block),
-                eta * factor * (boost if changed[t] else 1.0),
-                out=err,
-            )
-            block += g * err
-            maximum(block, 0, out=block)
-            # Sleep: z^s = W_td r^s, r~ = W_bu z^s (with the next wake's W_bu z alongside).
-            dream = windows[dreams[t]]
-            z_sleep = pair[:, 0]
-            einsum("abi,abj->j", dream.weights, w_td3[dream.rows, dream.cols], out=z_sleep)
-            last = t + 1 == n
-            if not last:
-                pair[:, 1] = zc[t + 1]
-            np.dot(w_bu2, pair, out=products)
-            win = windows[int(argmax(products[:, 0]))]
-            a = (epsilon * factor) * win.weights
-            block = w_bu3[win.rows, win.cols]
-            block *= 1.0 - a
-            block += a * z_sleep
-            block /= sqrt(einsum("abi,abi->ab", block, block))[..., None]
-            if not last:
-                products3[win.rows, win.cols, 1] = einsum("abi,i->ab", block, zc[t + 1])
-                r = products[:, 1].copy()
+        loop = getattr(self, "_fast_loop", None)
+        params = self.get_params()
+        if loop is None or not loop.bound_to(self._w_bu, self._w_td_t, params):
+            loop = _fast.FastLoop(self._w_bu, self._w_td_t, self._layout, params)
+            self._fast_loop = loop
+        dreams = self._layout.storage_of_grid[self._draw_dreams(z.shape[0])[:, 0]]
+        zc = np.ascontiguousarray(z, dtype=self._w_bu.dtype)
+        loop.run(zc, changed, dreams, _fast.schedule(self, z.shape[0]), self.n_steps_)
 
     # ------------------------------------------------------------------------------------------
     # Read-outs

@@ -100,3 +100,51 @@ def test_float32_close_to_float64(stream):
     ]
     np.testing.assert_allclose(fits[0].W_bu_, fits[1].W_bu_, atol=1e-4)
     np.testing.assert_allclose(fits[0].W_td_, fits[1].W_td_, atol=1e-4)
+
+
+@pytest.mark.parametrize("dtype, atol", [("float64", 1e-10), ("float32", 2e-5)])
+def test_fast_loop_matches_general_loop(stream, monkeypatch, dtype, atol):
+    """The fast loop (normalisation from the dense pass, no norms computed, window rows written
+    through strided views) equals the plain per-phase loop up to rounding, through the decay."""
+    vision, language, motor, changed = stream
+    params = dict(PARAMS, dtype=dtype, n_steps_total=len(changed), decay_fraction=0.5)
+    fast = Associator(rng=11, **params).fit(vision, language, motor, changed)
+    monkeypatch.setattr(Associator, "_train_fast", Associator._train_general)
+    general = Associator(rng=11, **params).fit(vision, language, motor, changed)
+    np.testing.assert_allclose(fast.W_bu_, general.W_bu_, rtol=0, atol=atol)
+    np.testing.assert_allclose(fast.W_td_, general.W_td_, rtol=0, atol=atol)
+    assert np.abs(fast.W_td_).max() > 1000 * atol
+
+
+@pytest.mark.parametrize("hidden_shape", [(16, 48), (48, 16), (5, 5), (3, 9)])
+def test_storage_layout_holds_each_window_in_one_run(hidden_shape):
+    """Each unit's run of storage rows holds its whole square window; the envelope on the run is
+    the Gaussian inside the window and exactly 0 elsewhere; the order round-trips."""
+    model = Associator(hidden_shape=hidden_shape, rng=0)
+    model._initialise()
+    layout = model._layout
+    rows, cols = hidden_shape
+    n = rows * cols
+    assert sorted(layout.storage_of_grid) == list(range(n))
+    np.testing.assert_array_equal(layout.storage_of_grid[layout.grid_of_storage], np.arange(n))
+    grid_r, grid_c = np.divmod(np.arange(n), cols)
+    half = int(np.ceil(model.envelope_cutoff * model.envelope_sigma))
+    for i, k in enumerate(layout.grid_of_storage):
+        dr, dc = grid_r - grid_r[k], grid_c - grid_c[k]
+        inside = (np.abs(dr) <= half) & (np.abs(dc) <= half)
+        expected = np.where(inside, np.exp(-0.5 * (dr**2 + dc**2)), 0.0)
+        on_run = np.zeros(n)
+        on_run[layout.grid_of_storage[layout.starts[i] : layout.stops[i]]] = layout.envelopes[i]
+        np.testing.assert_allclose(on_run, expected, rtol=1e-12, atol=0)
+    w_bu = np.random.default_rng(1).random((rows, cols, 180)).astype(np.float32)
+    model._set_state(w_bu, w_bu, 0, None)
+    np.testing.assert_array_equal(model.W_bu_, w_bu.reshape(n, 180))
+    np.testing.assert_array_equal(model.W_td_, w_bu.reshape(n, 180).T)
+
+
+def test_unit_rows_at_paper_size():
+    """float32 at the paper's sizes and rates: rows stay unit length (the periodic renormalisation
+    bounds the rounding of the per-step scale factors)."""
+    data = synthetic.encode_stream(synthetic.teacher_stream(5000, rng=8))
+    model = Associator(n_steps_total=10_000, rng=2).fit(*data)
+    assert np.abs(np.linalg.norm(model.W_bu_, axis=1) - 1).max() < 1e-5
