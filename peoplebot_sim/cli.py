@@ -50,6 +50,36 @@ def _cmd_track_bench(args) -> int:
     return 0
 
 
+def _cmd_reproduce(args) -> int:
+    from peoplebot_sim.reproduce import ReproduceConfig, run
+
+    overrides = {k: getattr(args, k) for k in (
+        "seed", "vision", "motor_source", "train_steps", "test_steps", "vision_test_steps", "trials",
+        "trial_seconds", "workers") if getattr(args, k) is not None}
+    if args.no_videos:
+        overrides["videos"] = False
+    config = ReproduceConfig.quick(**overrides) if args.quick else ReproduceConfig(**overrides)
+    out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
+        f"{config.vision}-{config.motor_source}-seed{config.seed}")
+    results = run(config, out, fresh=args.fresh)
+    print((pathlib.Path(out) / "results.md").read_text())
+    print(f"run folder: {out} (results.json, results.md, figures/, videos)")
+    return 0 if results else 1
+
+
+def _cmd_figures(args) -> int:
+    from associator import figures, persistence
+
+    out = pathlib.Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    model = persistence.load(args.network)
+    written = [figures.fig3_word_codes(out / "fig3_word_codes.png"),
+               figures.fig5_language_weights(model, out / "fig5_language_weights.png"),
+               figures.fig6_motor_weights(model, out / "fig6_motor_weights.png")]
+    print("\n".join(str(p) for p in written))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="peoplebot",
@@ -77,6 +107,32 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", type=pathlib.Path, default=RENDERS / "track_bench.json")
     bench.add_argument("--quiet", action="store_true")
     bench.set_defaults(func=_cmd_track_bench)
+
+    rep = sub.add_parser(
+        "reproduce", help="the paper's experiment end to end: watch, learn, recognise, perform")
+    rep.add_argument("--quick", action="store_true",
+                     help="the same stages at a small scale (about 3 minutes on 2 cores)")
+    rep.add_argument("--vision", choices=("truth", "overhead", "head"), default=None,
+                     help="how the student sees the robots (default: truth, the paper's setting)")
+    rep.add_argument("--motor-source", choices=("teacher", "vision"), default=None,
+                     help="the teacher's directive is given (default) or inferred from motion")
+    rep.add_argument("--seed", type=int, default=None)
+    rep.add_argument("--train-steps", type=_positive_int, default=None)
+    rep.add_argument("--test-steps", type=_positive_int, default=None)
+    rep.add_argument("--vision-test-steps", type=_positive_int, default=None,
+                     help="steps watched through the camera for recognition (camera modes)")
+    rep.add_argument("--trials", type=_positive_int, default=None, help="random starts per word")
+    rep.add_argument("--trial-seconds", type=_positive_float, default=None)
+    rep.add_argument("--workers", type=_positive_int, default=None)
+    rep.add_argument("--no-videos", action="store_true")
+    rep.add_argument("--out", type=pathlib.Path, default=None, help="run folder (resumed if present)")
+    rep.add_argument("--fresh", action="store_true", help="start the run folder over")
+    rep.set_defaults(func=_cmd_reproduce)
+
+    fig = sub.add_parser("figures", help="the paper's Figs. 3, 5 and 6 from a saved network")
+    fig.add_argument("--network", type=pathlib.Path, required=True, help="an associator .npz")
+    fig.add_argument("--out", type=pathlib.Path, default=RENDERS / "figures")
+    fig.set_defaults(func=_cmd_figures)
     return parser
 
 

@@ -13,6 +13,9 @@ teacher's physics is unchanged.
 from __future__ import annotations
 
 import dataclasses
+import json
+import os
+import pathlib
 
 import mujoco
 import numpy as np
@@ -184,3 +187,47 @@ class StreamGenerator:
             progress(n_steps % 1000)
         self.steps_done += n_steps
         return TeacherStream(pose_world, pose_wall, word, directive, changed)
+
+
+def generate_resumable(seed: int, n_steps: int, folder, name: str, *, chunk: int = 100_000,
+                       config: TaskConfig | None = None, progress_file=None) -> pathlib.Path:
+    """Generates a stream of ``n_steps`` into ``folder/name.npz`` in chunks, checkpointing after each
+    one (its rows and the generator's state), so an interrupted call resumes where it stopped and
+    gives the same stream. Returns the stream's path.
+
+    ``progress_file``, if given, receives the number of steps done after every chunk (for a parent
+    process showing progress).
+    """
+    folder = pathlib.Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    final = folder / f"{name}.npz"
+    if final.exists():
+        return final
+    state_path = folder / f"{name}.state.json"
+    generator = StreamGenerator(seed, config)
+    parts = sorted(folder.glob(f"{name}.part*.npz"))
+    if state_path.exists():
+        state = json.loads(state_path.read_text())
+        generator.set_state(state)
+        parts = parts[: state["parts"]]
+    done = generator.steps_done
+    while done < n_steps:
+        stream = generator.generate(min(chunk, n_steps - done))
+        part = folder / f"{name}.part{len(parts):04d}.npz"
+        stream.save(part)
+        parts.append(part)
+        state = generator.get_state()
+        state["parts"] = len(parts)
+        tmp = state_path.with_suffix(".partial")
+        tmp.write_text(json.dumps(state))
+        os.replace(tmp, state_path)
+        done = generator.steps_done
+        if progress_file is not None:
+            pathlib.Path(progress_file).write_text(str(done))
+    whole = TeacherStream.concatenate(TeacherStream.load(p) for p in parts)
+    whole.save(folder / f"{name}.partial.npz")
+    os.replace(folder / f"{name}.partial.npz", final)
+    for p in parts:
+        p.unlink()
+    state_path.unlink(missing_ok=True)
+    return final

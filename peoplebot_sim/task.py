@@ -321,10 +321,13 @@ class Environment(composer.Environment):
         no_substep_hooks = not (
             hooks._before_substep.entity_hooks or hooks._before_substep.extra_hooks
             or hooks._after_substep.entity_hooks or hooks._after_substep.extra_hooks)
+        # Composer leaves delay and buffer size as None (meaning its defaults, 0 and 1).
         default_schedules = all(
-            ob.update_interval == 1 and ob.delay == 0 and ob.buffer_size == 1
+            ob.update_interval == 1 and ob.delay in (None, 0) and ob.buffer_size in (None, 1)
             for ob in task.observables.values())
-        self._fused = no_substep_hooks and default_schedules
+        task_hooks = (type(task).before_substep is composer.Task.before_substep
+                      and type(task).after_substep is composer.Task.after_substep)
+        self._fused = no_substep_hooks and default_schedules and task_hooks
 
     def step(self, action):
         if not self._fused or self._reset_next_step:
@@ -357,5 +360,6 @@ def load(config: TaskConfig | None = None, seed=None, **overrides) -> Environmen
     """
     config = dataclasses.replace(config or TaskConfig(), **overrides)
     task = ImitationTask(config)
+    # The model never changes between episodes: compile it once (composer recompiles by default).
     return Environment(task, random_state=seed, strip_singleton_obs_buffer_dim=True,
-                       raise_exception_on_physics_error=True)
+                       raise_exception_on_physics_error=True, recompile_mjcf_every_episode=False)

@@ -47,6 +47,8 @@ class TeacherConfig:
         gap, then the gripper's 0.365 m reach.
       predock_gap_m: 'pick' lines up this far in front of the docked pose before driving in.
       lateral_tol_m, heading_tol_deg, dock_heading_tol_deg: docking tolerances.
+      approach_lead_m, approach_heading_tol_deg: the final approach steers at a point this far
+        beyond the docked pose on its centre line, within this heading tolerance.
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
       stuck_seconds, stuck_distance_m: the watchdog fires when a robot commanded to drive moves less
@@ -64,7 +66,9 @@ class TeacherConfig:
     pick_max_abs_phi_deg: float = 45.0
     dock_x_m: float = 0.825
     predock_gap_m: float = 0.45
-    lateral_tol_m: float = 0.05
+    lateral_tol_m: float = 0.03
+    approach_lead_m: float = 0.5
+    approach_heading_tol_deg: float = 4.0
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
     lift_backoff_m: float = 0.9
@@ -149,9 +153,10 @@ class Teacher:
         ``finished`` instead of moving on)."""
         if word not in ("go", "pick", "lift"):
             raise ValueError(f"unknown word {word!r}; allowed: go, pick, lift")
+        self.loop = True  # entering the first behaviour is not a transition
+        self._enter(word, {"go": "drive", "pick": "line_up", "lift": "back"}[word])
         self.loop = loop
         self.finished = False
-        self._enter(word, {"go": "drive", "pick": "line_up", "lift": "back"}[word])
 
     def _enter(self, word: str, phase: str) -> None:
         if not getattr(self, "loop", True) and word != getattr(self, "word", word):
@@ -218,13 +223,26 @@ class Teacher:
         self.directive = handler(x, y, yaw, student_pose)
         return self.directive
 
-    def _start_turn_away(self, yaw, bearing):
+    def _escape_direction(self, x, y, student) -> float:
+        """Returns the heading (rad) pointing away from the nearby obstacles, each weighted by how
+        close it is: in a corner it points out of the corner, not along the next wall."""
         c = self.config
-        relative = wrap_degrees(math.degrees(bearing - yaw))
-        if abs(relative) < 5.0:
+        reach = c.turn_radius_m + c.lookahead_m + 0.3
+        ex = ey = 0.0
+        for distance, bearing in self._obstacles(x, y, student):
+            if distance < reach:
+                weight = (reach - distance) / reach
+                ex -= weight * math.cos(bearing)
+                ey -= weight * math.sin(bearing)
+        return math.atan2(ey, ex)
+
+    def _start_turn_away(self, x, y, yaw, bearing, student):
+        c = self.config
+        relative = wrap_degrees(math.degrees(self._escape_direction(x, y, student) - yaw))
+        if abs(relative) > 175.0:
             self._turn_sign = float(self._rng.choice([-1.0, 1.0]))
         else:
-            self._turn_sign = -1.0 if relative > 0 else 1.0
+            self._turn_sign = 1.0 if relative > 0 else -1.0
         self._obstacle_bearing = bearing
         jitter = self._rng.uniform(-c.turn_away_jitter_deg, c.turn_away_jitter_deg)
         self._turn_target_deg = min(175.0, c.turn_away_deg + jitter)
@@ -251,7 +269,7 @@ class Teacher:
             self.phase = "drive"
             return "forward"
         if bearing is not None:
-            self._start_turn_away(yaw, bearing)
+            self._start_turn_away(x, y, yaw, bearing, student)
             return "turn_left" if self._turn_sign > 0 else "turn_right"
         return "forward"
 
@@ -277,8 +295,12 @@ class Teacher:
             self.phase = "approach"
         if self.phase == "approach":
             if y < dock_y - 0.015:
-                if abs(heading_error) > c.heading_tol_deg:
-                    return self._turn_towards(heading_error)
+                # Steer at a point beyond the dock on its centre line: lateral offsets shrink as it
+                # drives in, instead of being carried to the table.
+                aim = math.atan2(dock_y + c.approach_lead_m - y, dock_x - x)
+                error = wrap_degrees(math.degrees(aim - yaw))
+                if abs(error) > c.approach_heading_tol_deg:
+                    return self._turn_towards(error)
                 return "forward"
             self.phase = "square"
         # 'square': stand square to the table, then the pick is done.

@@ -242,16 +242,11 @@ def _drive(ctrl_forward: float, ctrl_turn: float, seconds: float = 2.5, window_s
     return along, sideways, yaw_rate
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="peoplebot.xml bug: under a constant speed command the robot rocks on its axle "
-    "between its casters, the wheels unload and spin, and the mean speed is 0.28 m/s for "
-    "+0.35 and -0.17 m/s for -0.35 commanded",
-)
-@pytest.mark.parametrize("speed", [0.35, -0.35])
+@pytest.mark.parametrize("speed", [0.35, -0.35, 0.75])
 def test_forward_actuator_drives_at_the_commanded_speed(speed):
+    # Fails if the casters drag (their contact friction must not be the floor's).
     along, sideways, yaw_rate = _drive(speed, 0.0)
-    assert along == pytest.approx(speed, rel=0.15)
+    assert along == pytest.approx(speed, rel=0.03)
     assert abs(sideways) < 0.02
     assert abs(yaw_rate) < math.radians(2.0)
 
