@@ -83,6 +83,8 @@ class StudentVision:
         if self.mode == "truth":
             out = {"student": np.asarray(observation["student_pose"], dtype=float)}
             if self.watch_teacher:
+                if "teacher_pose" not in observation:
+                    raise ValueError("watch_teacher=True but the environment has no teacher")
                 out["teacher"] = np.asarray(observation["teacher_pose"], dtype=float)
             return out
         if self.mode == "overhead":

@@ -15,8 +15,9 @@ Success, per trial (all in ``SuccessConfig``):
 - ``pick`` (other walls): the same start relative to one of the three other walls; success is the
   equivalent docked pose at that wall (the wall frame cannot tell walls apart, so the student docks
   where it is).
-- ``lift``: from the docked pose: within 60 s the gripper's tip is at least 0.5 m from the table and
-  the robot faces the arena's centre within 45 deg, without touching anything.
+- ``lift``: from the docked pose: within 60 s the robot's centre is at least 0.5 m farther from the
+  table than when docked and the robot faces the arena's centre within 45 deg, without touching
+  anything.
 """
 
 from __future__ import annotations
@@ -53,7 +54,6 @@ class SuccessConfig:
     dock_heading_tol_deg: float = 20.0
     lift_min_gap_m: float = 0.5
     lift_heading_tol_deg: float = 45.0
-    gripper_reach_m: float = 0.365
 
 
 class StudentAgent:
@@ -75,6 +75,9 @@ class StudentAgent:
                  encoder: encoding.VisionEncoder, action_spec,
                  drive: directives.DriveSpeeds = directives.DriveSpeeds(), graded: bool = False,
                  arena: ArenaGeometry = ArenaGeometry()):
+        if word not in model.vocabulary:
+            raise ValueError(f"unknown word {word!r}; the network knows: "
+                             f"{', '.join(model.vocabulary)}")
         self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
         self.language = encoding.encode_word(word)
         self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
@@ -170,12 +173,16 @@ class SuccessMonitor:
 
     def __init__(self, row: str, wall: str, dt: float, config: SuccessConfig = SuccessConfig(),
                  arena: ArenaGeometry = ArenaGeometry()):
+        if row not in ROWS:
+            raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
         self.row, self.wall, self.dt, self.config, self.arena = row, wall, dt, config, arena
         self.touched = False
         self.reached = False
         self.areas: set[str] = set()
         self.positions: list[tuple[float, float]] = []
         self.dock = dock_pose_at(wall, arena)
+        x0, x1, y0, y1 = TABLE_BOX
+        self.docked_gap = y0 - self.dock[1]  # the docked robot's centre to the table's front edge
 
     def update(self, true_pose, touching: bool) -> bool:
         """Records one step of the true pose; returns True when the trial has already succeeded."""
@@ -192,12 +199,10 @@ class SuccessMonitor:
             if math.hypot(dx, dy) <= c.dock_position_tol_m and heading <= c.dock_heading_tol_deg:
                 self.reached = True
         elif self.row == "lift":
-            tip_x = x + c.gripper_reach_m * math.cos(yaw)
-            tip_y = y + c.gripper_reach_m * math.sin(yaw)
             x0, x1, y0, y1 = TABLE_BOX
-            gap = math.hypot(max(x0 - tip_x, 0.0, tip_x - x1), max(y0 - tip_y, 0.0, tip_y - y1))
+            gap = math.hypot(max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1))
             facing = abs(float(wrap_degrees(math.degrees(math.atan2(-y, -x) - yaw))))
-            if gap >= c.lift_min_gap_m and facing <= c.lift_heading_tol_deg:
+            if gap >= self.docked_gap + c.lift_min_gap_m and facing <= c.lift_heading_tol_deg:
                 self.reached = True
         return self.reached
 

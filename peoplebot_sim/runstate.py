@@ -22,6 +22,7 @@ class RunState:
     """
 
     def __init__(self, folder, config: dict, fresh: bool = False):
+        config = json.loads(json.dumps(config))  # as it will read back: tuples become lists
         self.folder = pathlib.Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.path = self.folder / "state.json"

@@ -41,10 +41,12 @@ def _environment(vision: str, seed: int, width: int = 320, height: int = 240):
     return env
 
 
-def _agent(policy: str, word: str, env, model, vision: str, calibration):
+def _agent(policy: str, word: str, env, model, vision: str, calibration, rng=None):
     spec = env.action_spec()
     if policy == "teacher":
-        return performance.TeacherAgent(word, spec)
+        if rng is None:
+            raise ValueError("a teacher reference agent needs its trial's rng seed")
+        return performance.TeacherAgent(word, spec, rng=rng)
     student_vision = StudentVision(vision, calibration, watch_teacher=False)
     return performance.StudentAgent(model, word, student_vision, encoding.VisionEncoder(), spec)
 
@@ -59,7 +61,9 @@ def _trials_worker(plan: list, network: str, vision: str, seconds: float, seed: 
     config = performance.SuccessConfig(seconds=seconds)
     out = []
     for k, item in enumerate(plan):
-        agent = _agent(item["policy"], WORD_OF_ROW[item["row"]], env, model, vision, calibration)
+        row_index = performance.ROWS.index(item["row"])
+        agent = _agent(item["policy"], WORD_OF_ROW[item["row"]], env, model, vision, calibration,
+                       rng=[seed, row_index, item["index"]])
         result = performance.run_trial(env, agent, item["row"], tuple(item["start"]), item["wall"],
                                        config=config)
         est = result.estimate
@@ -141,44 +145,56 @@ def fig4_traces(config, folder: pathlib.Path) -> dict:
     return out
 
 
+class _VideoWriter:
+    """Writes one annotated showcase frame per control step of a trial."""
+
+    def __init__(self, env, path, word: str, width: int, height: int, progress_file: str,
+                 frames_before: int):
+        import imageio.v2 as imageio
+
+        from peoplebot_sim.rendering import FrameRenderer
+
+        self.word, self.progress_file, self.frames = word, progress_file, frames_before
+        self.steps = 0
+        self.renderer = FrameRenderer(env.physics, width, height, antialias=True)
+        self.writer = imageio.get_writer(str(path), fps=20, codec="libx264", quality=7,
+                                         macro_block_size=8, ffmpeg_log_level="error")
+
+    def __call__(self, env, agent) -> None:
+        from peoplebot_sim.overlay import annotate
+
+        self.steps += 1
+        caption = f"student told '{self.word}'   t = {self.steps * 0.1:4.1f} s"
+        image = self.renderer.render("showcase")
+        self.writer.append_data(annotate(image, self.word, agent.directive, caption, agent.motor))
+        self.frames += 1
+        if self.frames % 20 == 0:
+            pathlib.Path(self.progress_file).write_text(str(self.frames))
+
+    def close(self) -> None:
+        self.writer.close()
+        self.renderer.close()
+
+
 def _video_worker(words: list, network: str, vision: str, seconds: float, seed: int,
                   width: int, height: int, folder: str, progress_file: str) -> list[str]:
-    import imageio.v2 as imageio
-
     import peoplebot_sim  # noqa: F401
-    from peoplebot_sim.overlay import annotate
-    from peoplebot_sim.rendering import FrameRenderer
 
     model = persistence.load(network)
     env = _environment(vision, seed)
     calibration = Calibration(env.physics, 320, 240) if vision != "truth" else None
-    paths = []
-    frames_done = 0
+    paths, frames = [], 0
     for word in words:
         agent = _agent("student", word, env, model, vision, calibration)
         path = pathlib.Path(folder) / f"student_{word}.mp4"
-        renderer = FrameRenderer(env.physics, width, height, antialias=True)
-        writer = imageio.get_writer(str(path), fps=20, codec="libx264", quality=7,
-                                    macro_block_size=8, ffmpeg_log_level="error")
-
-        def frame(env_, agent_, word=word, writer=writer, renderer=renderer):
-            nonlocal frames_done
-            image = renderer.render("showcase")
-            caption = f"student told '{word}'   t = {len(frame_times) * 0.1:4.1f} s"
-            frame_times.append(1)
-            writer.append_data(annotate(image, word, agent_.directive, caption, agent_.motor))
-            frames_done += 1
-            if frames_done % 20 == 0:
-                pathlib.Path(progress_file).write_text(str(frames_done))
-
-        frame_times: list = []
+        video = _VideoWriter(env, path, word, width, height, progress_file, frames)
         try:
             performance.run_trial(env, agent, word, performance.FIG4_START, "top",
                                   config=performance.SuccessConfig(seconds=seconds),
-                                  stop_on_success=False, frame_callback=frame)
+                                  stop_on_success=False, frame_callback=video)
         finally:
-            writer.close()
-            renderer.close()
+            video.close()
+        frames = video.frames
         paths.append(path.name)
     env.close()
     return paths

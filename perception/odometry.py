@@ -53,10 +53,14 @@ class WheelOdometry:
         d_left = (left_angle - self._last[0]) * r
         d_right = (right_angle - self._last[1]) * r
         self._last = (float(left_angle), float(right_angle))
-        distance = 0.5 * (d_left + d_right)
+        arc = 0.5 * (d_left + d_right)
         turn = (d_right - d_left) / self.geometry.track_m
-        heading = self.pose[2] + 0.5 * turn  # midpoint rule: exact for constant-curvature arcs' chords
-        self.pose[0] += distance * math.cos(heading)
-        self.pose[1] += distance * math.sin(heading)
+        # Exact for a constant-curvature arc: its chord points along the mean heading and is
+        # shorter than the arc by sin(turn / 2) / (turn / 2).
+        half = 0.5 * turn
+        chord = arc * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
+        heading = self.pose[2] + half
+        self.pose[0] += chord * math.cos(heading)
+        self.pose[1] += chord * math.sin(heading)
         self.pose[2] = (self.pose[2] + turn + math.pi) % (2 * math.pi) - math.pi
         return self.pose.copy()

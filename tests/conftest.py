@@ -1,0 +1,39 @@
+"""Shared tiny fixtures for the experiment tests: a short real teacher stream and an associator
+briefly trained on it."""
+
+import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
+
+# isort: split
+import pytest
+
+from associator import encoding
+from associator.network import Associator
+from peoplebot_sim import learning
+from peoplebot_sim.streams import StreamGenerator
+
+#: Control steps of the shared stream (150 s of the teacher looping go-pick-lift).
+STREAM_STEPS = 1500
+
+
+@pytest.fixture(scope="session")
+def teacher_stream():
+    """Returns a real teacher stream of ``STREAM_STEPS`` steps (seed 3; all three words occur)."""
+    return StreamGenerator(3).generate(STREAM_STEPS)
+
+
+def _small_associator(n_steps_total: int, seed: int = 0) -> Associator:
+    """Returns an unfitted associator on a small 6 x 12 grid (fast to train)."""
+    return Associator(hidden_shape=(6, 12), n_steps_total=n_steps_total, rng=seed)
+
+
+@pytest.fixture
+def small_associator():
+    """Returns a factory ``(n_steps_total, seed=0) -> Associator``, unfitted, on a 6 x 12 grid."""
+    return _small_associator
+
+
+@pytest.fixture(scope="session")
+def trained_associator(teacher_stream):
+    """Returns a small associator fitted once on the shared stream."""
+    model = _small_associator(len(teacher_stream))
+    return model.fit(*learning.encode_stream(teacher_stream, encoding.VisionEncoder()))

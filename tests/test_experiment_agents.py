@@ -1,0 +1,206 @@
+"""The performing agents (``peoplebot_sim.performance``): every action the student or the teacher
+sends satisfies the environment's action spec, in every vision mode; bad settings are refused by
+name."""
+
+import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
+
+# isort: split
+import numpy as np
+import pytest
+
+from associator import encoding
+from peoplebot_sim import learning, performance, task
+from peoplebot_sim.cli import main
+from peoplebot_sim.observers import Calibration, StudentVision
+from peoplebot_sim.performance import StudentAgent, TeacherAgent, make_action
+from peoplebot_sim.recognition import watch_with_vision
+from peoplebot_sim.reproduce import ReproduceConfig
+
+WORDS = ("go", "pick", "lift")
+WIDTH, HEIGHT = 320, 240  # the trials' camera size
+
+
+def drive_and_check(env, agent, start, n_steps: int) -> np.ndarray:
+    """Runs ``agent`` from ``start`` for ``n_steps``, validating every action against the spec
+    before the environment sees it; returns the actions (n_steps, 6)."""
+    spec = env.action_spec()
+    env.task.set_start(student_pose=start)
+    timestep = env.reset()
+    agent.reset(timestep, start)
+    actions = []
+    for _ in range(n_steps):
+        action = agent.step(timestep)
+        assert isinstance(action, np.ndarray) and action.shape == spec.shape
+        assert np.all(np.isfinite(action)), action
+        spec.validate(action)
+        actions.append(action)
+        timestep = env.step(action)
+    return np.array(actions)
+
+
+@pytest.fixture(scope="module")
+def student_env():
+    env = task.load(with_teacher=False, seed=0)
+    yield env
+    env.close()
+
+
+@pytest.mark.parametrize("graded", [False, True])
+def test_student_actions_in_truth_mode_satisfy_the_spec(student_env, trained_associator, graded):
+    """Each word, from the paper's start and from a start near a wall, 40 steps; the wheels are
+    actually driven (not only zeros), the gripper rests and the head stays still."""
+    spec = student_env.action_spec()
+    for word in WORDS:
+        for start in (performance.FIG4_START, (-1.5, -1.2, 2.5)):
+            agent = StudentAgent(
+                trained_associator,
+                word,
+                StudentVision("truth", watch_teacher=False),
+                encoding.VisionEncoder(),
+                spec,
+                graded=graded,
+            )
+            actions = drive_and_check(student_env, agent, start, 40)
+            assert np.any(actions[:, :2] != 0), (word, start)
+            np.testing.assert_array_equal(actions[:, 2:], 0.0)
+            assert agent.directive in ("forward", "backward", "turn_right", "turn_left")
+            assert agent.motor.shape == (4,) and np.all(np.isfinite(agent.motor))
+
+
+def test_student_actions_with_the_overhead_camera_satisfy_the_spec(trained_associator):
+    env = task.load(with_teacher=False, cameras=("overhead",), width=WIDTH, height=HEIGHT, seed=0)
+    calibration = Calibration(env.physics, WIDTH, HEIGHT)
+    agent = StudentAgent(
+        trained_associator,
+        "go",
+        StudentVision("overhead", calibration, watch_teacher=False),
+        encoding.VisionEncoder(),
+        env.action_spec(),
+    )
+    seen = 0
+    env.task.set_start(student_pose=performance.FIG4_START)
+    timestep = env.reset()
+    agent.reset(timestep, performance.FIG4_START)
+    for _ in range(30):
+        action = agent.step(timestep)
+        assert np.all(np.isfinite(action))
+        env.action_spec().validate(action)
+        seen += agent.own_pose is not None
+        timestep = env.step(action)
+    env.close()
+    assert seen >= 25, f"the overhead camera should see the student on most steps, saw {seen}/30"
+
+
+def test_student_actions_with_the_head_camera_satisfy_the_spec(student_env, trained_associator):
+    """Head mode performing alone: the own pose is odometry; the head is not commanded."""
+    spec = student_env.action_spec()
+    for word in WORDS:
+        vision = StudentVision(
+            "head", Calibration(student_env.physics, WIDTH, HEIGHT), watch_teacher=False
+        )
+        agent = StudentAgent(trained_associator, word, vision, encoding.VisionEncoder(), spec)
+        actions = drive_and_check(student_env, agent, performance.FIG4_START, 30)
+        assert agent.own_pose is not None
+        np.testing.assert_array_equal(actions[:, 4:], 0.0)
+
+
+def test_head_camera_pan_tilt_commands_stay_within_the_spec(trained_associator):
+    """Head mode watching the teacher: the pan-tilt controller's commands are clipped into the
+    head joints' ranges."""
+    env = task.load(cameras=("head",), width=WIDTH, height=HEIGHT, seed=1)
+    spec = env.action_spec()
+    vision = StudentVision("head", Calibration(env.physics, WIDTH, HEIGHT), watch_teacher=True)
+    agent = StudentAgent(trained_associator, "go", vision, encoding.VisionEncoder(), spec)
+    timestep = env.reset()
+    agent.reset(timestep, timestep.observation["student_pose"])
+    heads = []
+    for _ in range(40):
+        action = agent.step(timestep)
+        assert np.all(np.isfinite(action))
+        spec.validate(action)
+        heads.append(action[4:])
+        timestep = env.step(action)
+    env.close()
+    assert np.any(np.array(heads) != 0), "the pan-tilt controller should move the head"
+
+
+@pytest.mark.parametrize("word", WORDS)
+def test_teacher_agent_actions_satisfy_the_spec(student_env, word):
+    rng = np.random.default_rng(0)
+    start, _ = performance.sample_start("go" if word == "go" else word, rng)
+    agent = TeacherAgent(word, student_env.action_spec(), rng=0)
+    actions = drive_and_check(student_env, agent, start, 60)
+    assert np.any(actions[:, :2] != 0)
+
+
+def test_make_action_clips_into_the_spec(student_env):
+    spec = student_env.action_spec()
+    for drive, head in (
+        ((5.0, -9.0), (4.0, -3.0)),
+        ((-5.0, 9.0), (-4.0, 3.0)),
+        ((0.1, 0.2), (0.3, 0.4)),
+    ):
+        action = make_action(spec, drive, head)
+        spec.validate(action)
+        np.testing.assert_array_equal(
+            action[[0, 1, 4, 5]],
+            np.clip([*drive, *head], spec.minimum[[0, 1, 4, 5]], spec.maximum[[0, 1, 4, 5]]),
+        )
+        np.testing.assert_array_equal(action[2:4], 0.0)
+
+
+# ------------------------------------------------------------------------------ refused settings
+def test_unknown_vision_mode_is_refused_by_name():
+    with pytest.raises(ValueError, match="'sonar'.*truth, overhead, head"):
+        StudentVision("sonar")
+    with pytest.raises(ValueError, match="'sonar'"):
+        ReproduceConfig.quick(vision="sonar")
+    with pytest.raises(ValueError, match="'truth'"):
+        watch_with_vision(0, 10, "truth", progress=False)
+    with pytest.raises(ValueError, match="calibration"):
+        StudentVision("overhead")
+
+
+def test_unknown_motor_source_is_refused_by_name():
+    with pytest.raises(ValueError, match="'telepathy'.*teacher, vision"):
+        learning.check_motor_source("telepathy")
+    with pytest.raises(ValueError, match="'telepathy'"):
+        ReproduceConfig.quick(motor_source="telepathy")
+
+
+def test_unknown_word_is_refused_by_name(student_env, trained_associator):
+    spec = student_env.action_spec()
+    with pytest.raises(ValueError, match="'jump'"):
+        TeacherAgent("jump", spec)
+    with pytest.raises(ValueError, match="'jump'"):
+        StudentAgent(
+            trained_associator, "jump", StudentVision("truth"), encoding.VisionEncoder(), spec
+        )
+
+
+def test_unknown_row_is_refused_by_name():
+    with pytest.raises(ValueError, match="'dance'.*go, pick, pick_other_wall, lift"):
+        performance.sample_start("dance", np.random.default_rng(0))
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("train_steps", 0),
+        ("trials", -1),
+        ("workers", 0),
+        ("test_steps", 2.5),
+        ("trial_seconds", 4.0),
+        ("trial_seconds", float("nan")),
+    ],
+)
+def test_bad_reproduce_settings_are_refused_by_name(field, value):
+    with pytest.raises(ValueError, match=field):
+        ReproduceConfig.quick(**{field: value})
+
+
+def test_cli_refuses_an_unknown_vision_mode(capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["reproduce", "--quick", "--vision", "sonar"])
+    assert exit_info.value.code == 2
+    assert "sonar" in capsys.readouterr().err

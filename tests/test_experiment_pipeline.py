@@ -1,0 +1,356 @@
+"""``peoplebot reproduce`` end to end at a tiny scale (``peoplebot_sim.reproduce``): every artefact
+is produced and parseable, an interrupted run resumes to the same results, a run folder refuses
+other settings, and the CLI maps its options onto the same run. Not the scientific numbers.
+
+The shared run (about 15-25 s on 2 cores): 3,000 training and 2,000 test steps, one trial per row
+and policy of 6 s, 320 x 240 videos of 6 s.
+"""
+
+import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
+
+# isort: split
+import copy
+import json
+import shutil
+
+import imageio.v2 as imageio
+import numpy as np
+import pytest
+
+from associator import persistence
+from peoplebot_sim import performance, reproduce, trials
+from peoplebot_sim.cli import main
+from peoplebot_sim.reproduce import STAGES, ReproduceConfig
+from peoplebot_sim.runstate import RunState
+from peoplebot_sim.streams import TeacherStream
+
+WORDS = ("go", "pick", "lift")
+TINY = dict(
+    train_steps=3000, test_steps=2000, vision_test_steps=50, trials=1, trial_seconds=6.0, workers=2
+)
+#: The same settings as command-line options (videos at quick's default 320 x 240).
+TINY_CLI = [
+    "--quick",
+    "--train-steps",
+    "3000",
+    "--test-steps",
+    "2000",
+    "--vision-test-steps",
+    "50",
+    "--trials",
+    "1",
+    "--trial-seconds",
+    "6",
+    "--workers",
+    "2",
+]
+FRAMES = 60  # trial_seconds / 0.1 s
+
+
+def tiny_config(**overrides) -> ReproduceConfig:
+    return ReproduceConfig.quick(**{**TINY, **overrides})
+
+
+@pytest.fixture(scope="module")
+def run_folder(tmp_path_factory):
+    """Returns ``(folder, results)`` of one uninterrupted tiny run."""
+    folder = tmp_path_factory.mktemp("reproduce") / "run"
+    results = reproduce.run(tiny_config(), folder)
+    return folder, results
+
+
+def comparable(results: dict) -> dict:
+    """Returns the results without what legitimately differs between runs: wall-clock timings,
+    package versions and the teacher reference rows (see
+    ``test_teacher_reference_trials_are_seeded``)."""
+    out = copy.deepcopy(results)
+    for key in ("seconds_per_stage", "total_seconds", "versions"):
+        out.pop(key)
+    out["performance"].pop("teacher_reference")
+    return out
+
+
+# ------------------------------------------------------------------------------ artefacts
+def test_run_returns_what_results_json_holds(run_folder):
+    folder, results = run_folder
+    assert json.loads((folder / "results.json").read_text()) == results
+
+
+def test_results_json_recognition(run_folder):
+    folder, _ = run_folder
+    results = json.loads((folder / "results.json").read_text())
+    rec = results["recognition"]
+    assert set(rec["confusion"]) == set(WORDS)
+    for true in WORDS:
+        row = rec["confusion"][true]
+        assert set(row) == set(WORDS)
+        assert all(0.0 <= v <= 1.0 for v in row.values())
+        assert sum(row.values()) == pytest.approx(1.0)
+        # Fractions and counts agree.
+        counts = rec["counts_matrix"][true]
+        assert sum(counts.values()) == rec["counts"][true]
+        for recognised in WORDS:
+            assert row[recognised] == pytest.approx(counts[recognised] / rec["counts"][true])
+    assert sum(rec["counts"].values()) == TINY["test_steps"]
+    assert all(rec["counts"][w] > 0 for w in WORDS), "the test stream should show every word"
+    assert rec["paper"]["counts"]["go"] == 746211
+    # The recognised words saved beside the stream give the same table.
+    recognised = np.load(folder / "recognised_test.npy")
+    stream = TeacherStream.load(folder / "streams" / "test.npz")
+    assert recognised.shape == (TINY["test_steps"],)
+    for i, true in enumerate(WORDS):
+        for j, name in enumerate(WORDS):
+            assert rec["counts_matrix"][true][name] == int(
+                np.sum((stream.word == i) & (recognised == j))
+            )
+
+
+def test_results_json_performance_and_settings(run_folder):
+    folder, _ = run_folder
+    results = json.loads((folder / "results.json").read_text())
+    perf = results["performance"]
+    for row in ("go", "pick", "lift", "pick_other_wall"):
+        assert perf[row]["trials"] == TINY["trials"]
+        assert 0.0 <= perf[row]["success_rate"] <= 1.0
+        assert perf[row]["successes"] == round(perf[row]["success_rate"] * perf[row]["trials"])
+    assert set(perf["teacher_reference"]) == set(WORDS)
+    assert results["vision"] == "truth" and results["motor_source"] == "teacher"
+    assert results["seed"] == 0
+    assert results["config"] == tiny_config().as_dict()
+    for name in ("python", "mujoco", "dm-control", "numpy"):
+        assert isinstance(results["versions"][name], str), name
+    assert set(results["seconds_per_stage"]) == set(STAGES)
+    assert all(s > 0 for s in results["seconds_per_stage"].values())
+    assert results["total_seconds"] == pytest.approx(sum(results["seconds_per_stage"].values()))
+    assert results["learning"]["steps"] == TINY["train_steps"]
+    assert {k: v["steps"] for k, v in results["streams"].items()} == {
+        "train": TINY["train_steps"],
+        "test": TINY["test_steps"],
+    }
+
+
+def test_performance_trials_follow_the_plan(run_folder):
+    """One record per planned trial (paired starts; no teacher row for other walls), each lasting
+    at most the trial length, ending where the record says."""
+    folder, _ = run_folder
+    records = json.loads((folder / "performance_trials.json").read_text())
+    plan = trials.trial_plan(TINY["trials"], 0)
+    key = lambda t: (t["row"], t["policy"], t["index"])  # noqa: E731
+    assert sorted(map(key, records)) == sorted(map(key, plan))
+    assert len(plan) == len(performance.ROWS) * 2 - 1
+    planned = {key(p): p for p in plan}
+    for r in records:
+        assert r["start"] == planned[key(r)]["start"]
+        assert 0 < r["seconds"] <= TINY["trial_seconds"] + 1e-9
+        assert len(r["end_pose"]) == 3 and np.all(np.isfinite(r["end_pose"]))
+
+
+def test_results_md_has_the_tables(run_folder):
+    folder, results = run_folder
+    text = (folder / "results.md").read_text()
+    assert "Table I" in text
+    assert "seed 0" in text and "vision: truth" in text
+    for word in WORDS:
+        assert f"| '{word}' |" in text
+    # Our count and the paper's, side by side.
+    assert f"{results['recognition']['counts']['go']} (746211)" in text
+    assert "success rates" in text.lower()
+    for stage in STAGES:
+        assert f"| {stage} |" in text
+
+
+def test_figures_are_valid_images(run_folder):
+    folder, results = run_folder
+    names = {"fig3", "fig4", "fig5", "fig6", "fig7"}
+    assert set(results["figures"]) == names
+    for name, relative in results["figures"].items():
+        path = folder / relative
+        assert path.suffix == ".png" and path.name.startswith(name)
+        image = imageio.imread(path)
+        assert image.ndim == 3 and image.shape[2] in (3, 4), name
+        assert min(image.shape[:2]) >= 100 and max(image.shape[:2]) >= 400, (name, image.shape)
+        assert image.std() > 5, f"{name} should not be blank"
+
+
+def test_fig4_traces(run_folder):
+    folder, _ = run_folder
+    with np.load(folder / "fig4_traces.npz") as traces:
+        for word in WORDS:
+            trace = traces[word]
+            assert trace.shape == (FRAMES, 3) and np.all(np.isfinite(trace))
+            np.testing.assert_allclose(trace[0, :2], performance.FIG4_START[:2], atol=0.05)
+            assert traces[f"{word}_directives"].shape == (FRAMES,)
+
+
+def test_videos_play_with_one_frame_per_step(run_folder):
+    folder, results = run_folder
+    assert results["videos"] == [f"student_{w}.mp4" for w in sorted(WORDS)]
+    for word in WORDS:
+        with imageio.get_reader(folder / f"student_{word}.mp4") as reader:
+            frames = [frame for frame in reader]
+        assert len(frames) == FRAMES, word
+        assert frames[0].shape == (240, 320, 3)
+        # The caption's clock changes from frame to frame.
+        assert np.abs(frames[0].astype(int) - frames[-1]).mean() > 0.1
+
+
+def test_network_loads_with_its_training(run_folder):
+    folder, results = run_folder
+    model = persistence.load(folder / "network.npz")
+    assert model.n_steps_ == TINY["train_steps"]
+    assert model.get_params()["n_steps_total"] == TINY["train_steps"]
+    assert np.all(np.isfinite(model.W_bu_)) and np.all(np.isfinite(model.W_td_))
+    assert results["learning"]["params"]["hidden_shape"] == list(model.hidden_shape)
+
+
+def test_streams_are_saved_whole(run_folder):
+    folder, _ = run_folder
+    for name, steps in (("train", TINY["train_steps"]), ("test", TINY["test_steps"])):
+        stream = TeacherStream.load(folder / "streams" / f"{name}.npz")
+        assert len(stream) == steps
+        assert np.all(np.isfinite(stream.pose_world))
+
+
+def test_no_temporary_files_are_left(run_folder):
+    folder, _ = run_folder
+    leftovers = [
+        p.name
+        for p in folder.rglob("*")
+        if "partial" in p.name
+        or p.name.endswith(".progress")
+        or ".part" in p.name
+        or p.name.endswith(".state.json")
+    ]
+    assert leftovers == []
+
+
+# ------------------------------------------------------------------------------ resume
+class Interrupt(KeyboardInterrupt):
+    """Simulated Ctrl-C."""
+
+
+def test_interrupted_run_resumes_to_the_same_results(run_folder, tmp_path, monkeypatch):
+    """Interrupted in the recognition stage, then run again: the finished stages are kept (not
+    redone) and the results equal the uninterrupted run's."""
+    reference_folder, reference = run_folder
+    folder = tmp_path / "run"
+
+    def interrupt(*args, **kwargs):
+        raise Interrupt("simulated interruption")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(reproduce, "stage_recognition", interrupt)
+        with pytest.raises(Interrupt):
+            reproduce.run(tiny_config(), folder)
+    state = json.loads((folder / "state.json").read_text())
+    assert set(state["stages"]) == {"streams", "learning"}
+    assert not (folder / "results.json").exists()
+
+    def redone(*args, **kwargs):
+        raise AssertionError("a finished stage was run again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(reproduce, "stage_streams", redone)
+        patch.setattr(reproduce, "stage_learning", redone)
+        results = reproduce.run(tiny_config(), folder)
+    assert comparable(results) == comparable(reference)
+    assert set(results["seconds_per_stage"]) == set(STAGES)
+    a, b = (persistence.load(f / "network.npz") for f in (folder, reference_folder))
+    np.testing.assert_array_equal(a.W_bu_, b.W_bu_)
+    np.testing.assert_array_equal(a.W_td_, b.W_td_)
+    np.testing.assert_array_equal(
+        np.load(folder / "recognised_test.npy"), np.load(reference_folder / "recognised_test.npy")
+    )
+    with (
+        np.load(folder / "fig4_traces.npz") as x,
+        np.load(reference_folder / "fig4_traces.npz") as y,
+    ):
+        for word in WORDS:
+            np.testing.assert_array_equal(x[word], y[word])
+
+
+def test_teacher_reference_trials_are_seeded(run_folder):
+    """The teacher agent of a planned trial is built from the run's seed: two builds of the same
+    trial's agent start in the same state (its turn jitter included), so the reference row is
+    reproducible and resumes like the student's."""
+    env = trials._environment("truth", 0)
+    try:
+        first = trials._agent("teacher", "lift", env, None, "truth", None, rng=[0, 3, 1])
+        second = trials._agent("teacher", "lift", env, None, "truth", None, rng=[0, 3, 1])
+        other = trials._agent("teacher", "lift", env, None, "truth", None, rng=[0, 3, 2])
+        assert first.controller.get_state() == second.controller.get_state()
+        assert first.controller.get_state()["rng"] != other.controller.get_state()["rng"]
+        with pytest.raises(ValueError, match="rng"):
+            trials._agent("teacher", "lift", env, None, "truth", None)
+    finally:
+        env.close()
+
+
+def test_trial_plan_is_seeded_and_paired():
+    a, b = trials.trial_plan(3, seed=4), trials.trial_plan(3, seed=4)
+    assert a == b
+    assert trials.trial_plan(3, seed=5) != a
+    for row in performance.ROWS:
+        student = [p["start"] for p in a if p["row"] == row and p["policy"] == "student"]
+        teacher = [p["start"] for p in a if p["row"] == row and p["policy"] == "teacher"]
+        assert len(student) == 3
+        assert teacher == ([] if row == "pick_other_wall" else student)
+
+
+# ------------------------------------------------------------------------------ run folder state
+def test_run_state_refuses_other_settings_and_accepts_fresh(tmp_path):
+    base = tiny_config().as_dict()
+    state = RunState(tmp_path, base)
+    state.finish("streams", {"steps": 1})
+    other = tiny_config(trials=2, seed=7).as_dict()
+    with pytest.raises(ValueError, match=r"other settings \(seed, trials\)"):
+        RunState(tmp_path, other)
+    # Refusing leaves the folder's state alone.
+    assert RunState(tmp_path, base).done("streams")
+    fresh = RunState(tmp_path, other, fresh=True)
+    assert not fresh.done("streams")
+    assert RunState(tmp_path, other).data["config"] == other
+
+
+def test_run_state_refuses_a_corrupt_file(tmp_path):
+    (tmp_path / "state.json").write_text("{not json")
+    with pytest.raises(ValueError, match="corrupt"):
+        RunState(tmp_path, {"seed": 0})
+    assert RunState(tmp_path, {"seed": 0}, fresh=True).data["stages"] == {}
+
+
+def test_run_state_resumes_with_network_settings(tmp_path):
+    """A run with associator settings (a tuple among them) resumes in its own folder."""
+    config = tiny_config(network=(("hidden_shape", (8, 24)), ("eta", 0.002))).as_dict()
+    RunState(tmp_path, config).finish("streams", {})
+    assert RunState(
+        tmp_path, tiny_config(network=(("hidden_shape", (8, 24)), ("eta", 0.002))).as_dict()
+    ).done("streams")
+
+
+# ------------------------------------------------------------------------------ command line
+def test_cli_maps_its_options_onto_the_same_run(run_folder, tmp_path, capsys):
+    """``peoplebot reproduce --quick ... --out`` on a copy of the finished run finds its own
+    settings (so it keeps every stage) and prints results.md."""
+    folder, reference = run_folder
+    copy_folder = tmp_path / "copy"
+    shutil.copytree(folder, copy_folder)
+    assert main(["reproduce", *TINY_CLI, "--out", str(copy_folder)]) == 0
+    out = capsys.readouterr().out
+    for stage in STAGES:
+        assert f"[{stage}] done earlier, kept" in out
+    assert "Table I" in out
+    assert comparable(json.loads((copy_folder / "results.json").read_text())) == comparable(
+        reference
+    )
+
+
+def test_cli_refuses_a_folder_with_other_settings(run_folder, capsys):
+    folder, _ = run_folder
+    before = (folder / "state.json").read_text()
+    options = list(TINY_CLI)
+    options[options.index("--trials") + 1] = "2"
+    assert main(["reproduce", *options, "--out", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert "trials" in err and "--fresh" in err
+    assert (folder / "state.json").read_text() == before

@@ -1,0 +1,234 @@
+"""Interrupted learning and stream generation resume to exactly the result of an uninterrupted run
+(``peoplebot_sim.learning.train`` and ``peoplebot_sim.streams.generate_resumable``)."""
+
+import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
+
+# isort: split
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from associator import encoding, persistence
+from peoplebot_sim import learning, streams
+from peoplebot_sim.streams import TeacherStream, generate_resumable
+
+
+class Interrupt(KeyboardInterrupt):
+    """Raised by a test to simulate Ctrl-C at a chosen point."""
+
+
+def interrupt_on_call(monkeypatch, module, name: str, call: int):
+    """Replaces ``module.name`` with a wrapper that raises ``Interrupt`` on its ``call``-th call
+    (1-based; 0: never); returns the list that records the calls."""
+    original = getattr(module, name)
+    calls = []
+
+    def wrapper(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == call:
+            raise Interrupt(f"simulated interruption in {name}, call {call}")
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(module, name, wrapper)
+    return calls
+
+
+def assert_same_network(a, b):
+    np.testing.assert_array_equal(a.W_bu_, b.W_bu_)
+    np.testing.assert_array_equal(a.W_td_, b.W_td_)
+    assert a.n_steps_ == b.n_steps_
+    assert a.rng_.bit_generator.state == b.rng_.bit_generator.state
+
+
+# ------------------------------------------------------------------------------ learning.train
+@pytest.mark.parametrize("motor_source", ["teacher", "vision"])
+def test_interrupted_training_resumes_bit_identical(
+    teacher_stream, tmp_path, monkeypatch, small_associator, motor_source
+):
+    """Training stopped inside the third chunk (two checkpoints written) and started again with a
+    fresh model ends with the same weights, step count and random state as one uninterrupted
+    call."""
+    encoder = encoding.VisionEncoder()
+    n = len(teacher_stream)
+    chunk = 400
+
+    reference = learning.train(
+        small_associator(n),
+        teacher_stream,
+        tmp_path / "whole.npz",
+        encoder=encoder,
+        motor_source=motor_source,
+        chunk=n,
+        progress=False,
+    )
+
+    checkpoint = tmp_path / "resumed.npz"
+    with monkeypatch.context() as patch:
+        interrupt_on_call(patch, learning, "encode_stream", call=3)
+        with pytest.raises(Interrupt):
+            learning.train(
+                small_associator(n),
+                teacher_stream,
+                checkpoint,
+                encoder=encoder,
+                motor_source=motor_source,
+                chunk=chunk,
+                progress=False,
+            )
+    partial = persistence.load(checkpoint)
+    assert partial.n_steps_ == 2 * chunk, "the interruption should leave two chunks saved"
+    assert not (tmp_path / "resumed.partial.npz").exists()
+
+    with monkeypatch.context() as patch:
+        calls = interrupt_on_call(patch, learning, "encode_stream", call=0)
+        resumed = learning.train(
+            small_associator(n),
+            teacher_stream,
+            checkpoint,
+            encoder=encoder,
+            motor_source=motor_source,
+            chunk=chunk,
+            progress=False,
+        )
+    assert len(calls) == 2, "the resumed run should train only the chunks not yet saved"
+    assert resumed.n_steps_ == n
+    assert_same_network(resumed, reference)
+    assert_same_network(persistence.load(checkpoint), reference)
+    assert np.all(np.isfinite(resumed.W_bu_)) and np.all(np.isfinite(resumed.W_td_))
+
+
+def test_training_is_independent_of_chunk_size(teacher_stream, tmp_path, small_associator):
+    """Odd chunk sizes (boundaries inside directive changes) give the same network, including the
+    motion-inferred directives, which need history across the boundary."""
+    encoder = encoding.VisionEncoder()
+    n = len(teacher_stream)
+    whole = learning.train(
+        small_associator(n),
+        teacher_stream,
+        tmp_path / "a.npz",
+        encoder=encoder,
+        motor_source="vision",
+        chunk=n,
+        progress=False,
+    )
+    pieces = learning.train(
+        small_associator(n),
+        teacher_stream,
+        tmp_path / "b.npz",
+        encoder=encoder,
+        motor_source="vision",
+        chunk=137,
+        progress=False,
+    )
+    assert_same_network(pieces, whole)
+
+
+def test_encode_stream_chunks_match_the_whole(teacher_stream):
+    """encode_stream over [start, stop) equals the same rows of the whole stream's encoding, for
+    both motor sources."""
+    encoder = encoding.VisionEncoder()
+    for source in ("teacher", "vision"):
+        whole = learning.encode_stream(teacher_stream, encoder, source)
+        for start, stop in ((0, 1), (1, 2), (2, 301), (777, 1500)):
+            part = learning.encode_stream(teacher_stream, encoder, source, start=start, stop=stop)
+            for w, p in zip(whole, part, strict=True):
+                np.testing.assert_array_equal(w[start:stop], p)
+
+
+def test_training_refuses_a_checkpoint_with_other_hyper_parameters(
+    teacher_stream, tmp_path, small_associator
+):
+    encoder = encoding.VisionEncoder()
+    n = len(teacher_stream)
+    path = tmp_path / "net.npz"
+    learning.train(
+        small_associator(n), teacher_stream, path, encoder=encoder, chunk=500, progress=False
+    )
+    other = small_associator(n)
+    other.eta = 0.002
+    with pytest.raises(ValueError, match="hyper-parameters"):
+        learning.train(other, teacher_stream, path, encoder=encoder, progress=False)
+
+
+def test_training_refuses_a_checkpoint_longer_than_the_stream(
+    teacher_stream, tmp_path, small_associator
+):
+    encoder = encoding.VisionEncoder()
+    n = len(teacher_stream)
+    path = tmp_path / "net.npz"
+    learning.train(small_associator(n), teacher_stream, path, encoder=encoder, progress=False)
+    shorter = TeacherStream(
+        *(getattr(teacher_stream, f.name)[:100] for f in dataclasses.fields(TeacherStream))
+    )
+    with pytest.raises(ValueError, match="more than the stream"):
+        learning.train(small_associator(n), shorter, path, encoder=encoder, progress=False)
+
+
+def test_unknown_motor_source_is_refused_by_name(teacher_stream):
+    with pytest.raises(ValueError, match="telepathy.*teacher, vision"):
+        learning.encode_stream(teacher_stream, encoding.VisionEncoder(), "telepathy")
+
+
+# ------------------------------------------------------------------------------ streams
+def test_interrupted_stream_resumes_identical(tmp_path, monkeypatch):
+    """A stream generated in chunks of 200 steps, interrupted inside its third chunk and resumed
+    (physics and teacher state restored from the checkpoint), equals the same stream generated in
+    one go, row for row."""
+    n, seed = 700, 11
+    reference = TeacherStream.load(generate_resumable(seed, n, tmp_path / "whole", "s", chunk=n))
+
+    folder = tmp_path / "resumed"
+    with monkeypatch.context() as patch:
+        interrupt_on_call(patch, streams.StreamGenerator, "generate", call=3)
+        with pytest.raises(Interrupt):
+            generate_resumable(seed, n, folder, "s", chunk=200)
+    state = json.loads((folder / "s.state.json").read_text())
+    assert state["steps_done"] == 400 and state["parts"] == 2
+    assert len(sorted(folder.glob("s.part*.npz"))) == 2
+    assert not (folder / "s.npz").exists()
+
+    progress = tmp_path / "progress.txt"
+    with monkeypatch.context() as patch:
+        calls = interrupt_on_call(patch, streams.StreamGenerator, "generate", call=0)
+        path = generate_resumable(seed, n, folder, "s", chunk=200, progress_file=progress)
+    assert len(calls) == 2, "the resumed run should simulate only the steps not yet saved"
+    resumed = TeacherStream.load(path)
+    assert len(resumed) == n
+    for field in dataclasses.fields(TeacherStream):
+        np.testing.assert_array_equal(
+            getattr(resumed, field.name), getattr(reference, field.name), err_msg=field.name
+        )
+    assert progress.read_text() == str(n)
+    # Only the finished stream is left behind.
+    assert sorted(p.name for p in folder.iterdir()) == ["s.npz"]
+
+
+def test_stream_generator_state_round_trip():
+    """get_state after k steps, set_state into a fresh generator: the next steps are identical;
+    a different seed gives a different stream (the comparison can fail)."""
+    a = streams.StreamGenerator(5)
+    a.generate(150)
+    state = json.loads(json.dumps(a.get_state()))  # as written to disk
+    b = streams.StreamGenerator(5)
+    b.set_state(state)
+    next_a, next_b = a.generate(250), b.generate(250)
+    np.testing.assert_array_equal(next_a.pose_world, next_b.pose_world)
+    np.testing.assert_array_equal(next_a.directive, next_b.directive)
+    np.testing.assert_array_equal(next_a.word, next_b.word)
+    other = streams.StreamGenerator(6).generate(400)
+    assert not np.array_equal(other.pose_world[150:], next_a.pose_world)
+    with pytest.raises(ValueError, match="physics state"):
+        b.set_state({**state, "physics": state["physics"][:-1]})
+
+
+def test_finished_stream_is_kept(tmp_path, monkeypatch):
+    """A second call finds the finished file and does not simulate again."""
+    path = generate_resumable(2, 50, tmp_path, "t", chunk=50)
+
+    def fail(*args, **kwargs):
+        raise AssertionError("generated again")
+
+    monkeypatch.setattr(streams.StreamGenerator, "generate", fail)
+    assert generate_resumable(2, 50, tmp_path, "t", chunk=50) == path
