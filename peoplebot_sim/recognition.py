@@ -53,16 +53,20 @@ def table(counts: np.ndarray) -> dict:
     }
 
 
+#: The read-outs reported: the paper's, and the motor area weighted by 3 in the bottom-up pass.
+READOUTS = {"paper": 1.0, "motor_weighted": 3.0}
+
+
 def recognise_stream(model: Associator, stream: TeacherStream, encoder: encoding.VisionEncoder,
-                     motor_source: str = "teacher", dt: float = 0.1,
-                     chunk: int = 200_000) -> np.ndarray:
+                     motor_source: str = "teacher", dt: float = 0.1, chunk: int = 200_000,
+                     motor_gain: float = 1.0) -> np.ndarray:
     """Returns the recognised word index for every step of a stream (language omitted)."""
     out = np.empty(len(stream), np.int8)
     vocabulary = {w: i for i, w in enumerate(directives.WORDS)}
     for start in range(0, len(stream), chunk):
         stop = min(start + chunk, len(stream))
         vision, _, motor, _ = encode_stream(stream, encoder, motor_source, dt, start, stop)
-        words = model.recognise_batch(vision, motor).words
+        words = model.recognise_batch(vision, motor, motor_gain).words
         out[start:stop] = [vocabulary[w] for w in words]
     return out
 
@@ -135,7 +139,7 @@ def _stream(pose_world, word, directive, changed) -> TeacherStream:
 
 
 def recognise_observed(model: Associator, observed: ObservedStream, encoder, motor_source: str,
-                       dt: float = 0.1) -> dict:
+                       dt: float = 0.1, motor_gain: float = 1.0) -> dict:
     """Recognition on the steps the student saw, from its estimates and, paired, from the truth."""
     seen = observed.seen
     rows = np.flatnonzero(seen)
@@ -146,6 +150,6 @@ def recognise_observed(model: Associator, observed: ObservedStream, encoder, mot
         if motor_source == "vision":
             inferred = inferred_directives(stream.pose_world.astype(float), dt)[rows]
             subset.directive = inferred
-        recognised = recognise_stream(model, subset, encoder, "teacher", dt)
+        recognised = recognise_stream(model, subset, encoder, "teacher", dt, motor_gain=motor_gain)
         out[name] = table(confusion_counts(subset.word, recognised))
     return out

@@ -109,7 +109,11 @@ def results(config, state, folder: pathlib.Path) -> dict:
             "counts": truth.get("counts"),
             "counts_matrix": truth.get("counts_matrix"),
             "paper": PAPER_TABLE_I,
+            "motor_weighted": recognition.get("truth_motor_weighted"),
+            "readouts": recognition.get("readouts"),
             **({"vision": recognition["vision"]} if "vision" in recognition else {}),
+            **({"vision_motor_weighted": recognition["vision_motor_weighted"]}
+               if "vision_motor_weighted" in recognition else {}),
         },
         "performance": perf,
         "fig4": performance.get("fig4"),
@@ -145,6 +149,25 @@ def markdown(res: dict) -> str:
             lines.append(f"| '{t}' | " + " | ".join(cells)
                          + f" | {rec['counts'][t]} ({rec['paper']['counts'][t]}) |")
         lines.append("")
+        if rec.get("motor_weighted"):
+            mw = rec["motor_weighted"]
+            lines += ["With the motor area weighted by 3 in the read-out (same network; see the "
+                      "README's fidelity notes):", "",
+                      "| Performing | 'go' | 'pick' | 'lift' |", "|---|---|---|---|"]
+            for t in words:
+                lines.append(f"| '{t}' | " + " | ".join(_pct(mw["confusion"][t][r]) for r in words)
+                             + " |")
+            lines.append("")
+        lines += ["Correct recognition (the diagonal):", "",
+                  "| | 'go' | 'pick' | 'lift' |", "|---|---|---|---|",
+                  "| paper | " + " | ".join(_pct(rec["paper"]["confusion"][t][t]) for t in words)
+                  + " |",
+                  "| ours, paper's read-out | " + " | ".join(_pct(rec["confusion"][t][t])
+                                                           for t in words) + " |"]
+        if rec.get("motor_weighted"):
+            lines.append("| ours, motor-weighted read-out | " + " | ".join(
+                _pct(rec["motor_weighted"]["confusion"][t][t]) for t in words) + " |")
+        lines.append("")
     if "vision" in rec:
         v = rec["vision"]
         lines += [f"### Recognition through the {res['vision']} camera", "",
@@ -152,10 +175,14 @@ def markdown(res: dict) -> str:
                   f"{_pct(v['seen_fraction'])} of them (median position error "
                   f"{v['teacher_position_error_cm']['median']:.2f} cm). Correct recognition on "
                   "those steps, from the camera and from the truth:", "",
-                  "| Performing | camera | truth, same steps |", "|---|---|---|"]
+                  "| Performing | camera | truth, same steps | camera, motor-weighted | "
+                  "truth, same steps, motor-weighted |", "|---|---|---|---|---|"]
+        vw = rec.get("vision_motor_weighted")
         for t in words:
+            extra = (f" {_pct(vw['vision']['confusion'][t][t])} | "
+                     f"{_pct(vw['truth_same_steps']['confusion'][t][t])} |") if vw else " - | - |"
             lines.append(f"| '{t}' | {_pct(v['vision']['confusion'][t][t])} | "
-                         f"{_pct(v['truth_same_steps']['confusion'][t][t])} |")
+                         f"{_pct(v['truth_same_steps']['confusion'][t][t])} |" + extra)
         lines.append("")
     perf = res["performance"]
     if perf:

@@ -161,14 +161,22 @@ def stage_learning(config: ReproduceConfig, folder: pathlib.Path, encoder) -> di
 
 def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, encoder) -> dict:
     stream = TeacherStream.load(folder / "streams" / "test.npz")
-    recognised = recognition.recognise_stream(model, stream, encoder, config.motor_source)
-    out = {"truth": recognition.table(recognition.confusion_counts(stream.word, recognised))}
-    np.save(folder / "recognised_test.npy", recognised)
+    out = {"readouts": dict(recognition.READOUTS)}
+    for name, gain in recognition.READOUTS.items():
+        recognised = recognition.recognise_stream(model, stream, encoder, config.motor_source,
+                                                  motor_gain=gain)
+        key = "truth" if name == "paper" else f"truth_{name}"
+        out[key] = recognition.table(recognition.confusion_counts(stream.word, recognised))
+        if name == "paper":
+            np.save(folder / "recognised_test.npy", recognised)
     if config.vision != "truth":
         observed = recognition.watch_with_vision(config.seed * 2 + 3, config.vision_test_steps,
                                                  config.vision)
         out["vision"] = recognition.recognise_observed(model, observed, encoder,
                                                        config.motor_source)
+        out["vision_motor_weighted"] = recognition.recognise_observed(
+            model, observed, encoder, config.motor_source,
+            motor_gain=recognition.READOUTS["motor_weighted"])
         error = np.hypot(*(observed.observed.pose_world[observed.seen, :2]
                            - observed.truth.pose_world[observed.seen, :2]).T)
         out["vision"]["teacher_position_error_cm"] = {
