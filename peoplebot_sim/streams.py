@@ -211,8 +211,14 @@ def generate_resumable(seed: int, n_steps: int, folder, name: str, *, chunk: int
         generator.set_state(state)
         parts = parts[: state["parts"]]
     done = generator.steps_done
+
+    def report(increment, _state={"done": done}):
+        _state["done"] += increment
+        if progress_file is not None and _state["done"] % 10_000 < 1000:
+            pathlib.Path(progress_file).write_text(str(_state["done"]))
+
     while done < n_steps:
-        stream = generator.generate(min(chunk, n_steps - done))
+        stream = generator.generate(min(chunk, n_steps - done), progress=report)
         part = folder / f"{name}.part{len(parts):04d}.npz"
         stream.save(part)
         parts.append(part)
