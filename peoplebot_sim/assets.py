@@ -12,7 +12,9 @@ from dm_control import mjcf
 from perception import layout
 
 MODELS_DIR = pathlib.Path(__file__).resolve().parent.parent / "models"
-if not MODELS_DIR.is_dir():  # installed non-editable: the models ship as the peoplebot_models package
+if (
+    not MODELS_DIR.is_dir()
+):  # installed non-editable: the models ship as the peoplebot_models package
     import peoplebot_models
 
     MODELS_DIR = peoplebot_models.MODELS_DIR
@@ -26,7 +28,7 @@ OBJECT_XML = MODELS_DIR / "arena" / "object.xml"
 _PIXELS_PER_CELL = 20
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def marker_png(marker_id: int, size_m: float, quiet_zone_m: float = layout.QUIET_ZONE_M) -> bytes:
     """Returns a PNG of ArUco ``marker_id`` with its white quiet zone, sized for a plate of side
     ``size_m + 2 * quiet_zone_m`` metres."""
@@ -35,7 +37,9 @@ def marker_png(marker_id: int, size_m: float, quiet_zone_m: float = layout.QUIET
     side_px = cells * _PIXELS_PER_CELL
     image = cv2.aruco.generateImageMarker(dictionary, int(marker_id), side_px)
     border = int(round(quiet_zone_m / size_m * side_px))
-    image = cv2.copyMakeBorder(image, border, border, border, border, cv2.BORDER_CONSTANT, value=255)
+    image = cv2.copyMakeBorder(
+        image, border, border, border, border, cv2.BORDER_CONSTANT, value=255
+    )
     ok, encoded = cv2.imencode(".png", np.ascontiguousarray(image))
     if not ok:
         raise RuntimeError(f"could not encode marker {marker_id} as PNG")

@@ -29,12 +29,27 @@ def _positive_float(text: str) -> float:
 def _cmd_demo(args) -> int:
     from peoplebot_sim.demo import DemoConfig, run_demo
 
-    config = DemoConfig(seconds=args.seconds, width=args.width, height=args.height, seed=args.seed,
-                        camera=args.camera, speedup=args.speedup, video=not args.no_video,
-                        shadows=not args.no_shadows)
+    config = DemoConfig(
+        seconds=args.seconds,
+        width=args.width,
+        height=args.height,
+        seed=args.seed,
+        camera=args.camera,
+        speedup=args.speedup,
+        video=not args.no_video,
+        shadows=not args.no_shadows,
+    )
     summary = run_demo(config, args.out, progress=not args.quiet)
-    keys = ("simulated_seconds", "cycles_completed", "cycles_per_10_minutes", "time_share",
-            "collisions", "watchdog_recoveries", "video", "wall_clock_seconds")
+    keys = (
+        "simulated_seconds",
+        "cycles_completed",
+        "cycles_per_10_minutes",
+        "time_share",
+        "collisions",
+        "watchdog_recoveries",
+        "video",
+        "wall_clock_seconds",
+    )
     print(json.dumps({k: summary[k] for k in keys}, indent=2))
     print(f"summary: {pathlib.Path(args.out).with_suffix('.json')}")
     return 0
@@ -43,8 +58,9 @@ def _cmd_demo(args) -> int:
 def _cmd_track_bench(args) -> int:
     from peoplebot_sim import track_bench
 
-    report = track_bench.run(args.samples, args.width, args.height, args.seed, args.out,
-                             progress=not args.quiet)
+    report = track_bench.run(
+        args.samples, args.width, args.height, args.seed, args.out, progress=not args.quiet
+    )
     print(json.dumps(report, indent=2))
     print(f"written: {args.out}")
     return 0
@@ -53,14 +69,27 @@ def _cmd_track_bench(args) -> int:
 def _cmd_reproduce(args) -> int:
     from peoplebot_sim.reproduce import ReproduceConfig, run
 
-    overrides = {k: getattr(args, k) for k in (
-        "seed", "vision", "motor_source", "train_steps", "test_steps", "vision_test_steps", "trials",
-        "trial_seconds", "workers") if getattr(args, k) is not None}
+    overrides = {
+        k: getattr(args, k)
+        for k in (
+            "seed",
+            "vision",
+            "motor_source",
+            "train_steps",
+            "test_steps",
+            "vision_test_steps",
+            "trials",
+            "trial_seconds",
+            "workers",
+        )
+        if getattr(args, k) is not None
+    }
     if args.no_videos:
         overrides["videos"] = False
     config = ReproduceConfig.quick(**overrides) if args.quick else ReproduceConfig(**overrides)
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
-        f"{config.vision}-{config.motor_source}-seed{config.seed}")
+        f"{config.vision}-{config.motor_source}-seed{config.seed}"
+    )
     results = run(config, out, fresh=args.fresh)
     print((pathlib.Path(out) / "results.md").read_text())
     print(f"run folder: {out} (results.json, results.md, figures/, videos)")
@@ -73,9 +102,11 @@ def _cmd_figures(args) -> int:
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model = persistence.load(args.network)
-    written = [figures.fig3_word_codes(out / "fig3_word_codes.png"),
-               figures.fig5_language_weights(model, out / "fig5_language_weights.png"),
-               figures.fig6_motor_weights(model, out / "fig6_motor_weights.png")]
+    written = [
+        figures.fig3_word_codes(out / "fig3_word_codes.png"),
+        figures.fig5_language_weights(model, out / "fig5_language_weights.png"),
+        figures.fig6_motor_weights(model, out / "fig6_motor_weights.png"),
+    ]
     print("\n".join(str(p) for p in written))
     return 0
 
@@ -83,7 +114,8 @@ def _cmd_figures(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="peoplebot",
-        description="A student PeopleBot learns go, pick and lift by watching a teacher PeopleBot.")
+        description="A student PeopleBot learns go, pick and lift by watching a teacher PeopleBot.",
+    )
     sub = parser.add_subparsers(dest="command", required=True)
 
     demo = sub.add_parser("demo", help="video of the teacher looping go-pick-lift, with a summary")
@@ -109,23 +141,41 @@ def build_parser() -> argparse.ArgumentParser:
     bench.set_defaults(func=_cmd_track_bench)
 
     rep = sub.add_parser(
-        "reproduce", help="the paper's experiment end to end: watch, learn, recognise, perform")
-    rep.add_argument("--quick", action="store_true",
-                     help="the same stages at a small scale (about 3 minutes on 2 cores)")
-    rep.add_argument("--vision", choices=("truth", "overhead", "head"), default=None,
-                     help="how the student sees the robots (default: truth, the paper's setting)")
-    rep.add_argument("--motor-source", choices=("teacher", "vision"), default=None,
-                     help="the teacher's directive is given (default) or inferred from motion")
+        "reproduce", help="the paper's experiment end to end: watch, learn, recognise, perform"
+    )
+    rep.add_argument(
+        "--quick",
+        action="store_true",
+        help="the same stages at a small scale (about 3 minutes on 2 cores)",
+    )
+    rep.add_argument(
+        "--vision",
+        choices=("truth", "overhead", "head"),
+        default=None,
+        help="how the student sees the robots (default: truth, the paper's setting)",
+    )
+    rep.add_argument(
+        "--motor-source",
+        choices=("teacher", "vision"),
+        default=None,
+        help="the teacher's directive is given (default) or inferred from motion",
+    )
     rep.add_argument("--seed", type=int, default=None)
     rep.add_argument("--train-steps", type=_positive_int, default=None)
     rep.add_argument("--test-steps", type=_positive_int, default=None)
-    rep.add_argument("--vision-test-steps", type=_positive_int, default=None,
-                     help="steps watched through the camera for recognition (camera modes)")
+    rep.add_argument(
+        "--vision-test-steps",
+        type=_positive_int,
+        default=None,
+        help="steps watched through the camera for recognition (camera modes)",
+    )
     rep.add_argument("--trials", type=_positive_int, default=None, help="random starts per word")
     rep.add_argument("--trial-seconds", type=_positive_float, default=None)
     rep.add_argument("--workers", type=_positive_int, default=None)
     rep.add_argument("--no-videos", action="store_true")
-    rep.add_argument("--out", type=pathlib.Path, default=None, help="run folder (resumed if present)")
+    rep.add_argument(
+        "--out", type=pathlib.Path, default=None, help="run folder (resumed if present)"
+    )
     rep.add_argument("--fresh", action="store_true", help="start the run folder over")
     rep.set_defaults(func=_cmd_reproduce)
 

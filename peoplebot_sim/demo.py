@@ -69,11 +69,17 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
     renderer = writer = None
     try:
         if config.video:
-            renderer = FrameRenderer(env.physics, config.width, config.height,
-                                     shadows=config.shadows, antialias=True)
+            renderer = FrameRenderer(
+                env.physics, config.width, config.height, shadows=config.shadows, antialias=True
+            )
             writer = imageio.get_writer(
-                str(out_path), fps=config.speedup / control_dt, codec="libx264", quality=7,
-                macro_block_size=8, ffmpeg_log_level="error")
+                str(out_path),
+                fps=config.speedup / control_dt,
+                codec="libx264",
+                quality=7,
+                macro_block_size=8,
+                ffmpeg_log_level="error",
+            )
         camera = "showcase" if config.camera == "showcase" else "overhead"
         steps = tqdm(range(n_steps), desc="demo", unit="step", disable=not progress)
         for _ in steps:
@@ -83,8 +89,10 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
             counts[directives.word_index(word)] += 1
             if writer is not None:
                 frame = renderer.render(camera)
-                caption = (f"t = {env.physics.data.time:6.1f} s   cycles "
-                           f"{task.teacher_controller.cycles_completed}")
+                caption = (
+                    f"t = {env.physics.data.time:6.1f} s   cycles "
+                    f"{task.teacher_controller.cycles_completed}"
+                )
                 writer.append_data(annotate(frame, word, directive, caption))
     finally:
         if writer is not None:
@@ -98,7 +106,9 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
         "control_steps": n_steps,
         "cycles_completed": teacher.cycles_completed,
         "cycles_per_10_minutes": teacher.cycles_completed * 600.0 / simulated,
-        "time_share": {w: float(c / max(n_steps, 1)) for w, c in zip(directives.WORDS, counts)},
+        "time_share": {
+            w: float(c / max(n_steps, 1)) for w, c in zip(directives.WORDS, counts, strict=True)
+        },
         "collisions": task.collisions,
         "watchdog_recoveries": len(teacher.events),
         "watchdog_events": [dataclasses.asdict(e) for e in teacher.events],

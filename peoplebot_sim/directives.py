@@ -37,7 +37,9 @@ class DriveSpeeds:
     def command(self, directive: str) -> tuple[float, float]:
         """Returns ``(linear m/s, yaw rate rad/s)`` for a directive name."""
         index = directive_index(directive)
-        return _UNIT_COMMANDS[index][0] * self.linear_mps, _UNIT_COMMANDS[index][1] * self.turn_radps
+        return _UNIT_COMMANDS[index][0] * self.linear_mps, _UNIT_COMMANDS[index][
+            1
+        ] * self.turn_radps
 
     def graded_command(self, activations) -> tuple[float, float]:
         """Returns ``(linear m/s, yaw rate rad/s)`` from graded motor activations, shape (4,).
@@ -47,7 +49,9 @@ class DriveSpeeds:
         """
         a = np.asarray(activations, dtype=float)
         if a.shape != (4,) or not np.all(np.isfinite(a)):
-            raise ValueError(f"activations must be 4 finite numbers in {DIRECTIVES} order, got {a!r}")
+            raise ValueError(
+                f"activations must be 4 finite numbers in {DIRECTIVES} order, got {a!r}"
+            )
         a = np.clip(a, 0.0, None)
         total = a.sum()
         if total <= 0:

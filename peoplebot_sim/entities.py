@@ -21,7 +21,9 @@ class PeopleBot(composer.Entity):
 
     def _build(self, role: str):
         if role not in layout.ROBOT_NAMES:
-            raise ValueError(f"unknown robot role {role!r}; allowed: {', '.join(layout.ROBOT_NAMES)}")
+            raise ValueError(
+                f"unknown robot role {role!r}; allowed: {', '.join(layout.ROBOT_NAMES)}"
+            )
         self._role = role
         self._mjcf_root = mjcf.from_path(str(assets.PEOPLEBOT_XML))
         self._mjcf_root.model = role
@@ -30,8 +32,11 @@ class PeopleBot(composer.Entity):
                 continue
             name = f"marker_{placement.face}"
             texture = self._mjcf_root.asset.add(
-                "texture", name=f"{name}_tex", type="2d",
-                file=assets.marker_texture_asset(placement.marker_id, placement.size_m))
+                "texture",
+                name=f"{name}_tex",
+                type="2d",
+                file=assets.marker_texture_asset(placement.marker_id, placement.size_m),
+            )
             material = self._mjcf_root.asset.add("material", name=f"{name}_mat", texture=texture)
             self._mjcf_root.find("geom", name).material = material
         self._actuators = {a.name: a for a in self._mjcf_root.find_all("actuator")}

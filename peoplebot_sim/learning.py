@@ -29,8 +29,9 @@ def check_motor_source(source: str) -> str:
     return source
 
 
-def inferred_directives(pose_world: np.ndarray, dt: float,
-                        config: DirectiveConfig = DirectiveConfig()) -> np.ndarray:
+def inferred_directives(
+    pose_world: np.ndarray, dt: float, config: DirectiveConfig = DirectiveConfig()
+) -> np.ndarray:
     """Returns directive indices (n,), in ``directives.DIRECTIVES`` order, inferred from successive
     world poses (n, 3), causally: step t gets the motion from t-1 to t (step 0 copies step 1);
     where no motion is recognised the previous directive holds."""
@@ -47,8 +48,14 @@ def inferred_directives(pose_world: np.ndarray, dt: float,
     return np.where(valid[positions], index[positions], 0).astype(np.int8)
 
 
-def encode_stream(stream: TeacherStream, encoder: encoding.VisionEncoder, motor_source: str = "teacher",
-                  dt: float = 0.1, start: int = 0, stop: int | None = None):
+def encode_stream(
+    stream: TeacherStream,
+    encoder: encoding.VisionEncoder,
+    motor_source: str = "teacher",
+    dt: float = 0.1,
+    start: int = 0,
+    stop: int | None = None,
+):
     """Returns ``(vision (n, 96), language (n, 80), motor (n, 4), motor_changed (n,))`` for rows
     ``start:stop`` of a stream; with ``motor_source='vision'`` the directives are inferred from the
     poses' motion instead of taken from the teacher."""
@@ -66,15 +73,23 @@ def encode_stream(stream: TeacherStream, encoder: encoding.VisionEncoder, motor_
         lo = max(start - 2, 0)
         inferred = inferred_directives(stream.pose_world[lo:stop].astype(float), dt)
         changed = np.concatenate([[False], inferred[1:] != inferred[:-1]])
-        motor_index = inferred[start - lo:].astype(int)
-        changed = changed[start - lo:]
+        motor_index = inferred[start - lo :].astype(int)
+        changed = changed[start - lo :]
     motor = encoding.encode_motor_batch(motor_index)
     return vision, language, motor, changed
 
 
-def train(model: Associator, stream: TeacherStream, checkpoint_path, *,
-          encoder: encoding.VisionEncoder, motor_source: str = "teacher", dt: float = 0.1,
-          chunk: int = 50_000, progress: bool = True) -> Associator:
+def train(
+    model: Associator,
+    stream: TeacherStream,
+    checkpoint_path,
+    *,
+    encoder: encoding.VisionEncoder,
+    motor_source: str = "teacher",
+    dt: float = 0.1,
+    chunk: int = 50_000,
+    progress: bool = True,
+) -> Associator:
     """Trains ``model`` on ``stream``, resuming from ``checkpoint_path`` if it holds a partly trained
     network; saves the network there after every chunk (atomically) and returns it."""
     checkpoint_path = pathlib.Path(checkpoint_path)
@@ -83,14 +98,16 @@ def train(model: Associator, stream: TeacherStream, checkpoint_path, *,
         if saved.get_params() != model.get_params():
             raise ValueError(
                 f"checkpoint {checkpoint_path} was made with other hyper-parameters; delete it or "
-                "use the same settings")
+                "use the same settings"
+            )
         model = saved
     done = int(getattr(model, "n_steps_", 0))
     total = len(stream)
     if done > total:
         raise ValueError(f"checkpoint has {done} steps, more than the stream's {total}")
-    bar = tqdm(total=total, initial=done, desc="learning by watching", unit="step",
-               disable=not progress)
+    bar = tqdm(
+        total=total, initial=done, desc="learning by watching", unit="step", disable=not progress
+    )
     while done < total:
         stop = min(done + chunk, total)
         model.partial_fit(*encode_stream(stream, encoder, motor_source, dt, done, stop))

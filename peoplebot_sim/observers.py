@@ -52,8 +52,12 @@ class StudentVision:
       watch_teacher: also estimate the teacher (False when the student performs alone).
     """
 
-    def __init__(self, mode: str = "truth", calibration: Calibration | None = None,
-                 watch_teacher: bool = True):
+    def __init__(
+        self,
+        mode: str = "truth",
+        calibration: Calibration | None = None,
+        watch_teacher: bool = True,
+    ):
         self.mode = check_vision_mode(mode)
         if mode != "truth" and calibration is None:
             raise ValueError(f"vision mode {mode!r} needs a camera calibration")
@@ -71,7 +75,9 @@ class StudentVision:
     def reset(self, start_pose=None, wheel_angles=None) -> None:
         """Starts afresh. The head mode's odometry starts from the student's known start pose and
         wheel angles (it cannot update before they are given)."""
-        self.tracker = Tracker(robots=self._robots) if self._robots and self.mode != "truth" else None
+        self.tracker = (
+            Tracker(robots=self._robots) if self._robots and self.mode != "truth" else None
+        )
         self.head_command = (0.0, 0.0)
         self.pantilt = PanTiltController()
         self.odometry = None
@@ -89,8 +95,9 @@ class StudentVision:
             return out
         if self.mode == "overhead":
             out = {"teacher": None, "student": None}
-            tracked = self.tracker.update(observation["overhead_camera"], self.calibration.overhead,
-                                          time_s)
+            tracked = self.tracker.update(
+                observation["overhead_camera"], self.calibration.overhead, time_s
+            )
             for robot, track in tracked.items():
                 out[robot] = None if track.track.pose is None else track.track.pose.copy()
             return out

@@ -71,13 +71,21 @@ class StudentAgent:
       graded: drive with the graded motor activations instead of the winning directive.
     """
 
-    def __init__(self, model: Associator, word: str, vision: StudentVision,
-                 encoder: encoding.VisionEncoder, action_spec,
-                 drive: directives.DriveSpeeds = directives.DriveSpeeds(), graded: bool = False,
-                 arena: ArenaGeometry = ArenaGeometry()):
+    def __init__(
+        self,
+        model: Associator,
+        word: str,
+        vision: StudentVision,
+        encoder: encoding.VisionEncoder,
+        action_spec,
+        drive: directives.DriveSpeeds = directives.DriveSpeeds(),
+        graded: bool = False,
+        arena: ArenaGeometry = ArenaGeometry(),
+    ):
         if word not in model.vocabulary:
-            raise ValueError(f"unknown word {word!r}; the network knows: "
-                             f"{', '.join(model.vocabulary)}")
+            raise ValueError(
+                f"unknown word {word!r}; the network knows: {', '.join(model.vocabulary)}"
+            )
         self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
         self.language = encoding.encode_word(word)
         self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
@@ -122,9 +130,21 @@ class TeacherAgent:
     """The teacher's controller performing one word on the student's robot: the reference row. It
     reads the true pose (the teacher is a scripted demonstrator, not a learner)."""
 
-    def __init__(self, word: str, action_spec, drive: directives.DriveSpeeds = directives.DriveSpeeds(),
-                 arena: ArenaGeometry = ArenaGeometry(), rng=None):
-        self.word, self.spec, self.drive, self.arena, self._rng = word, action_spec, drive, arena, rng
+    def __init__(
+        self,
+        word: str,
+        action_spec,
+        drive: directives.DriveSpeeds = directives.DriveSpeeds(),
+        arena: ArenaGeometry = ArenaGeometry(),
+        rng=None,
+    ):
+        self.word, self.spec, self.drive, self.arena, self._rng = (
+            word,
+            action_spec,
+            drive,
+            arena,
+            rng,
+        )
         self.reset()
 
     def reset(self, timestep=None, start_pose=None) -> None:
@@ -142,8 +162,12 @@ class TeacherAgent:
         return self.controller.finished
 
 
-def sample_start(row: str, rng: np.random.Generator, arena: ArenaGeometry = ArenaGeometry(),
-                 task: ImitationTask | None = None) -> tuple[tuple, str]:
+def sample_start(
+    row: str,
+    rng: np.random.Generator,
+    arena: ArenaGeometry = ArenaGeometry(),
+    task: ImitationTask | None = None,
+) -> tuple[tuple, str]:
     """Returns a random start ``(x, y, yaw)`` for a row and the wall its success refers to."""
     if row == "go":
         h = arena.half_side_m - 0.6
@@ -153,13 +177,20 @@ def sample_start(row: str, rng: np.random.Generator, arena: ArenaGeometry = Aren
                 return (float(x), float(y), float(rng.uniform(-math.pi, math.pi))), "top"
     if row in ("pick", "pick_other_wall"):
         wall = "top" if row == "pick" else str(rng.choice(["right", "bottom", "left"]))
-        pose = WallPose(float(rng.uniform(1.0, 1.6)), float(rng.uniform(-0.8, 0.8)),
-                        float(rng.uniform(-45.0, 45.0)), wall)
+        pose = WallPose(
+            float(rng.uniform(1.0, 1.6)),
+            float(rng.uniform(-0.8, 0.8)),
+            float(rng.uniform(-45.0, 45.0)),
+            wall,
+        )
         return wall_to_world(pose, arena), wall
     if row == "lift":
         dock = Teacher(arena=arena).dock_pose
-        return (dock[0] + float(rng.normal(0, 0.02)), dock[1] + float(rng.normal(0, 0.02)),
-                dock[2] + math.radians(float(rng.normal(0, 2.0)))), "top"
+        return (
+            dock[0] + float(rng.normal(0, 0.02)),
+            dock[1] + float(rng.normal(0, 0.02)),
+            dock[2] + math.radians(float(rng.normal(0, 2.0))),
+        ), "top"
     raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
 
 
@@ -171,8 +202,14 @@ def dock_pose_at(wall: str, arena: ArenaGeometry = ArenaGeometry()) -> tuple:
 class SuccessMonitor:
     """Follows one trial and decides its success by the row's definition."""
 
-    def __init__(self, row: str, wall: str, dt: float, config: SuccessConfig = SuccessConfig(),
-                 arena: ArenaGeometry = ArenaGeometry()):
+    def __init__(
+        self,
+        row: str,
+        wall: str,
+        dt: float,
+        config: SuccessConfig = SuccessConfig(),
+        arena: ArenaGeometry = ArenaGeometry(),
+    ):
         if row not in ROWS:
             raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
         self.row, self.wall, self.dt, self.config, self.arena = row, wall, dt, config, arena
@@ -218,7 +255,9 @@ class SuccessMonitor:
         if len(p) <= window:
             return False
         travel = np.hypot(*(p[window:] - p[:-window]).T)
-        return len(self.areas) >= c.go_min_wall_areas and bool(np.all(travel >= c.go_min_window_travel_m))
+        return len(self.areas) >= c.go_min_wall_areas and bool(
+            np.all(travel >= c.go_min_window_travel_m)
+        )
 
 
 @dataclasses.dataclass
@@ -237,8 +276,17 @@ class TrialResult:
     directives: list
 
 
-def run_trial(env, agent, row: str, start, wall: str, *, config: SuccessConfig = SuccessConfig(),
-              stop_on_success: bool = True, frame_callback=None) -> TrialResult:
+def run_trial(
+    env,
+    agent,
+    row: str,
+    start,
+    wall: str,
+    *,
+    config: SuccessConfig = SuccessConfig(),
+    stop_on_success: bool = True,
+    frame_callback=None,
+) -> TrialResult:
     """Runs one trial of ``agent`` in a student-only environment ``env`` from ``start``.
 
     ``frame_callback(env, agent)`` is called after every step (for videos).
@@ -264,7 +312,15 @@ def run_trial(env, agent, row: str, start, wall: str, *, config: SuccessConfig =
             frame_callback(env, agent)
         if (succeeded and stop_on_success) or getattr(agent, "finished", False) or timestep.last():
             break
-    return TrialResult(row, "teacher" if isinstance(agent, TeacherAgent) else "student",
-                       tuple(float(v) for v in start), wall, monitor.success(),
-                       len(trace) * dt, monitor.touched, np.asarray(trace),
-                       np.asarray(estimates), chosen)
+    return TrialResult(
+        row,
+        "teacher" if isinstance(agent, TeacherAgent) else "student",
+        tuple(float(v) for v in start),
+        wall,
+        monitor.success(),
+        len(trace) * dt,
+        monitor.touched,
+        np.asarray(trace),
+        np.asarray(estimates),
+        chosen,
+    )

@@ -36,8 +36,9 @@ PAPER_TABLE_I = {
 def confusion_counts(true_words: np.ndarray, recognised: np.ndarray) -> np.ndarray:
     """Returns counts[true][recognised], shape (3, 3), from word indices."""
     n = len(directives.WORDS)
-    return np.bincount(true_words.astype(int) * n + recognised.astype(int),
-                       minlength=n * n).reshape(n, n)
+    return np.bincount(
+        true_words.astype(int) * n + recognised.astype(int), minlength=n * n
+    ).reshape(n, n)
 
 
 def table(counts: np.ndarray) -> dict:
@@ -45,11 +46,17 @@ def table(counts: np.ndarray) -> dict:
     words = directives.WORDS
     totals = counts.sum(axis=1)
     return {
-        "confusion": {t: {r: float(counts[i, j] / totals[i]) if totals[i] else None
-                          for j, r in enumerate(words)} for i, t in enumerate(words)},
+        "confusion": {
+            t: {
+                r: float(counts[i, j] / totals[i]) if totals[i] else None
+                for j, r in enumerate(words)
+            }
+            for i, t in enumerate(words)
+        },
         "counts": {t: int(totals[i]) for i, t in enumerate(words)},
-        "counts_matrix": {t: {r: int(counts[i, j]) for j, r in enumerate(words)}
-                          for i, t in enumerate(words)},
+        "counts_matrix": {
+            t: {r: int(counts[i, j]) for j, r in enumerate(words)} for i, t in enumerate(words)
+        },
     }
 
 
@@ -57,9 +64,15 @@ def table(counts: np.ndarray) -> dict:
 READOUTS = {"paper": 1.0, "motor_weighted": 3.0}
 
 
-def recognise_stream(model: Associator, stream: TeacherStream, encoder: encoding.VisionEncoder,
-                     motor_source: str = "teacher", dt: float = 0.1, chunk: int = 200_000,
-                     motor_gain: float = 1.0) -> np.ndarray:
+def recognise_stream(
+    model: Associator,
+    stream: TeacherStream,
+    encoder: encoding.VisionEncoder,
+    motor_source: str = "teacher",
+    dt: float = 0.1,
+    chunk: int = 200_000,
+    motor_gain: float = 1.0,
+) -> np.ndarray:
     """Returns the recognised word index for every step of a stream (language omitted)."""
     out = np.empty(len(stream), np.int8)
     vocabulary = {w: i for i, w in enumerate(directives.WORDS)}
@@ -87,8 +100,14 @@ class ObservedStream:
     seen: np.ndarray
 
 
-def watch_with_vision(seed: int, n_steps: int, vision_mode: str, width: int = 320,
-                      height: int = 240, progress: bool = True) -> ObservedStream:
+def watch_with_vision(
+    seed: int,
+    n_steps: int,
+    vision_mode: str,
+    width: int = 320,
+    height: int = 240,
+    progress: bool = True,
+) -> ObservedStream:
     """Runs the environment with the teacher looping and the student watching through its camera
     (``vision_mode`` 'overhead' or 'head'); returns what it saw beside the truth."""
     if vision_mode not in ("overhead", "head"):
@@ -107,8 +126,9 @@ def watch_with_vision(seed: int, n_steps: int, vision_mode: str, width: int = 32
     seen_world = np.full((n_steps, 3), np.nan)
     word = np.empty(n_steps, np.int8)
     directive = np.empty(n_steps, np.int8)
-    bar = tqdm(total=n_steps, desc=f"watching ({vision_mode} camera)", unit="step",
-               disable=not progress)
+    bar = tqdm(
+        total=n_steps, desc=f"watching ({vision_mode} camera)", unit="step", disable=not progress
+    )
     for i in range(n_steps):
         # The observation at this step: the teacher's pose now and the directive it now chooses.
         # The pose at the step's start (seen and true); the word and directive the teacher chooses
@@ -134,19 +154,31 @@ def _stream(pose_world, word, directive, changed) -> TeacherStream:
     if np.any(finite):
         x, y, phi, _ = world_to_wall_batch(*pose_world[finite].T)
         wall[finite] = np.column_stack([x, y, phi])
-    return TeacherStream(pose_world.astype(np.float32), wall.astype(np.float32), word.copy(),
-                         directive.copy(), changed.copy())
+    return TeacherStream(
+        pose_world.astype(np.float32),
+        wall.astype(np.float32),
+        word.copy(),
+        directive.copy(),
+        changed.copy(),
+    )
 
 
-def recognise_observed(model: Associator, observed: ObservedStream, encoder, motor_source: str,
-                       dt: float = 0.1, motor_gain: float = 1.0) -> dict:
+def recognise_observed(
+    model: Associator,
+    observed: ObservedStream,
+    encoder,
+    motor_source: str,
+    dt: float = 0.1,
+    motor_gain: float = 1.0,
+) -> dict:
     """Recognition on the steps the student saw, from its estimates and, paired, from the truth."""
     seen = observed.seen
     rows = np.flatnonzero(seen)
     out = {"steps": int(len(seen)), "seen_fraction": float(seen.mean()) if len(seen) else 0.0}
     for name, stream in (("vision", observed.observed), ("truth_same_steps", observed.truth)):
-        subset = TeacherStream(*(getattr(stream, f.name)[rows]
-                                 for f in dataclasses.fields(TeacherStream)))
+        subset = TeacherStream(
+            *(getattr(stream, f.name)[rows] for f in dataclasses.fields(TeacherStream))
+        )
         if motor_source == "vision":
             inferred = inferred_directives(stream.pose_world.astype(float), dt)[rows]
             subset.directive = inferred

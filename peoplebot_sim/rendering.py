@@ -23,8 +23,14 @@ class FrameRenderer:
     Use as a context manager, or call ``close()``: an EGL context left open errors at exit.
     """
 
-    def __init__(self, physics, width: int = 320, height: int = 240, shadows: bool = False,
-                 antialias: bool = False):
+    def __init__(
+        self,
+        physics,
+        width: int = 320,
+        height: int = 240,
+        shadows: bool = False,
+        antialias: bool = False,
+    ):
         model = physics.model.ptr
         max_w, max_h = model.vis.global_.offwidth, model.vis.global_.offheight
         if not (isinstance(width, (int, np.integer)) and 1 <= width <= max_w):

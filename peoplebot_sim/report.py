@@ -25,18 +25,28 @@ def fig4_traces(traces: dict, path, start) -> str:
     """Fig. 4: the student's traces over the arena, one panel per word, from the same start."""
     words = ("go", "pick", "lift")
     fig, axes = plt.subplots(1, 3, figsize=(11, 3.9))
-    for ax, word in zip(axes, words):
+    for ax, word in zip(axes, words, strict=True):
         ax.add_patch(plt.Rectangle((-2, -2), 4, 4, fill=False, lw=2, color="0.2"))
-        ax.add_patch(plt.Rectangle((TABLE_BOX[0], TABLE_BOX[2]), TABLE_BOX[1] - TABLE_BOX[0],
-                                   TABLE_BOX[3] - TABLE_BOX[2], color="#8b5a2b"))
+        ax.add_patch(
+            plt.Rectangle(
+                (TABLE_BOX[0], TABLE_BOX[2]),
+                TABLE_BOX[1] - TABLE_BOX[0],
+                TABLE_BOX[3] - TABLE_BOX[2],
+                color="#8b5a2b",
+            )
+        )
         ax.plot([-2, 2], [-2, 2], "--", color="0.6", lw=0.8)
         ax.plot([-2, 2], [2, -2], "--", color="0.6", lw=0.8)
         ax.fill([-2, 2, 0], [2, 2, 0], color="0.9", zorder=0)
         trace = traces[word]
         ax.plot(trace[:, 0], trace[:, 1], lw=1.2, color="tab:blue")
         ax.plot(trace[-1, 0], trace[-1, 1], "s", color="tab:red", ms=5, label="end")
-        ax.annotate("", xy=(start[0] + 0.35 * np.cos(start[2]), start[1] + 0.35 * np.sin(start[2])),
-                    xytext=start[:2], arrowprops={"arrowstyle": "->", "color": "k"})
+        ax.annotate(
+            "",
+            xy=(start[0] + 0.35 * np.cos(start[2]), start[1] + 0.35 * np.sin(start[2])),
+            xytext=start[:2],
+            arrowprops={"arrowstyle": "->", "color": "k"},
+        )
         ax.set_title(f"'{word}'")
         ax.set_xlim(-2.1, 2.1)
         ax.set_ylim(-2.1, 2.1)
@@ -68,19 +78,26 @@ def figures(config, folder: pathlib.Path, model, encoder) -> dict:
     for i, word in enumerate(directives.WORDS):
         rows = np.flatnonzero(stream.word == i)[:FIG7_SAMPLES]
         vision, _, motor, _ = learning.encode_stream(
-            _rows(stream, rows), encoder, config.motor_source)
+            _rows(stream, rows), encoder, config.motor_source
+        )
         recognition_inputs[word] = (vision, motor)
         trace = traces[word]
         x, y, phi, _ = world_to_wall_batch(trace[:, 0], trace[:, 1], trace[:, 2])
         performance_inputs[word] = encoder.encode_batch(x, y, phi, clip=True)
     paths["fig7"] = network_figures.fig7_hidden_activations(
-        model, out_dir / "fig7_hidden_activations.png", recognition_inputs, performance_inputs)
+        model, out_dir / "fig7_hidden_activations.png", recognition_inputs, performance_inputs
+    )
     return {k: str(pathlib.Path(v).relative_to(folder)) for k, v in paths.items()}
 
 
 def _rows(stream: TeacherStream, rows: np.ndarray) -> TeacherStream:
-    return TeacherStream(stream.pose_world[rows], stream.pose_wall[rows], stream.word[rows],
-                         stream.directive[rows], stream.motor_changed[rows])
+    return TeacherStream(
+        stream.pose_world[rows],
+        stream.pose_wall[rows],
+        stream.word[rows],
+        stream.directive[rows],
+        stream.motor_changed[rows],
+    )
 
 
 def results(config, state, folder: pathlib.Path) -> dict:
@@ -96,11 +113,13 @@ def results(config, state, folder: pathlib.Path) -> dict:
         if row in performance and performance[row].get("student"):
             perf[row] = performance[row]["student"]
     perf["teacher_reference"] = {
-        row: performance[row]["teacher"] for row in ("go", "pick", "lift")
-        if row in performance and performance[row].get("teacher")}
+        row: performance[row]["teacher"]
+        for row in ("go", "pick", "lift")
+        if row in performance and performance[row].get("teacher")
+    }
     return {
         "paper": "Elshaw, Weber, Zochios and Wermter: an associator network approach to robot "
-                 "learning by imitation through vision, motor control and language",
+        "learning by imitation through vision, motor control and language",
         "vision": config.vision,
         "motor_source": config.motor_source,
         "seed": config.seed,
@@ -112,8 +131,11 @@ def results(config, state, folder: pathlib.Path) -> dict:
             "motor_weighted": recognition.get("truth_motor_weighted"),
             "readouts": recognition.get("readouts"),
             **({"vision": recognition["vision"]} if "vision" in recognition else {}),
-            **({"vision_motor_weighted": recognition["vision_motor_weighted"]}
-               if "vision_motor_weighted" in recognition else {}),
+            **(
+                {"vision_motor_weighted": recognition["vision_motor_weighted"]}
+                if "vision_motor_weighted" in recognition
+                else {}
+            ),
         },
         "performance": perf,
         "fig4": performance.get("fig4"),
@@ -135,70 +157,119 @@ def _pct(value) -> str:
 def markdown(res: dict) -> str:
     """Returns ``results.md``: the tables beside the paper's."""
     words = directives.WORDS
-    lines = [f"# Reproduction results (vision: {res['vision']}, motor source: "
-             f"{res['motor_source']}, seed {res['seed']})", ""]
+    lines = [
+        f"# Reproduction results (vision: {res['vision']}, motor source: "
+        f"{res['motor_source']}, seed {res['seed']})",
+        "",
+    ]
     rec = res["recognition"]
     if rec.get("confusion"):
-        lines += ["## Recognition (Table I)", "",
-                  "Rows: the behaviour performed; columns: the word recognised. Ours, with the "
-                  "paper's in brackets.", "",
-                  "| Performing | 'go' | 'pick' | 'lift' | Count (paper) |", "|---|---|---|---|---|"]
+        lines += [
+            "## Recognition (Table I)",
+            "",
+            "Rows: the behaviour performed; columns: the word recognised. Ours, with the "
+            "paper's in brackets.",
+            "",
+            "| Performing | 'go' | 'pick' | 'lift' | Count (paper) |",
+            "|---|---|---|---|---|",
+        ]
         for t in words:
-            cells = [f"{_pct(rec['confusion'][t][r])} ({_pct(rec['paper']['confusion'][t][r])})"
-                     for r in words]
-            lines.append(f"| '{t}' | " + " | ".join(cells)
-                         + f" | {rec['counts'][t]} ({rec['paper']['counts'][t]}) |")
+            cells = [
+                f"{_pct(rec['confusion'][t][r])} ({_pct(rec['paper']['confusion'][t][r])})"
+                for r in words
+            ]
+            lines.append(
+                f"| '{t}' | "
+                + " | ".join(cells)
+                + f" | {rec['counts'][t]} ({rec['paper']['counts'][t]}) |"
+            )
         lines.append("")
         if rec.get("motor_weighted"):
             mw = rec["motor_weighted"]
-            lines += ["With the motor area weighted by 3 in the read-out (same network; see the "
-                      "README's fidelity notes):", "",
-                      "| Performing | 'go' | 'pick' | 'lift' |", "|---|---|---|---|"]
+            lines += [
+                "With the motor area weighted by 3 in the read-out (same network; see the "
+                "README's fidelity notes):",
+                "",
+                "| Performing | 'go' | 'pick' | 'lift' |",
+                "|---|---|---|---|",
+            ]
             for t in words:
-                lines.append(f"| '{t}' | " + " | ".join(_pct(mw["confusion"][t][r]) for r in words)
-                             + " |")
+                lines.append(
+                    f"| '{t}' | " + " | ".join(_pct(mw["confusion"][t][r]) for r in words) + " |"
+                )
             lines.append("")
-        lines += ["Correct recognition (the diagonal):", "",
-                  "| | 'go' | 'pick' | 'lift' |", "|---|---|---|---|",
-                  "| paper | " + " | ".join(_pct(rec["paper"]["confusion"][t][t]) for t in words)
-                  + " |",
-                  "| ours, paper's read-out | " + " | ".join(_pct(rec["confusion"][t][t])
-                                                           for t in words) + " |"]
+        lines += [
+            "Correct recognition (the diagonal):",
+            "",
+            "| | 'go' | 'pick' | 'lift' |",
+            "|---|---|---|---|",
+            "| paper | " + " | ".join(_pct(rec["paper"]["confusion"][t][t]) for t in words) + " |",
+            "| ours, paper's read-out | "
+            + " | ".join(_pct(rec["confusion"][t][t]) for t in words)
+            + " |",
+        ]
         if rec.get("motor_weighted"):
-            lines.append("| ours, motor-weighted read-out | " + " | ".join(
-                _pct(rec["motor_weighted"]["confusion"][t][t]) for t in words) + " |")
+            lines.append(
+                "| ours, motor-weighted read-out | "
+                + " | ".join(_pct(rec["motor_weighted"]["confusion"][t][t]) for t in words)
+                + " |"
+            )
         lines.append("")
     if "vision" in rec:
         v = rec["vision"]
-        lines += [f"### Recognition through the {res['vision']} camera", "",
-                  f"{v['steps']} steps watched; the teacher's pose was known on "
-                  f"{_pct(v['seen_fraction'])} of them (median position error "
-                  f"{v['teacher_position_error_cm']['median']:.2f} cm). Correct recognition on "
-                  "those steps, from the camera and from the truth:", "",
-                  "| Performing | camera | truth, same steps | camera, motor-weighted | "
-                  "truth, same steps, motor-weighted |", "|---|---|---|---|---|"]
+        lines += [
+            f"### Recognition through the {res['vision']} camera",
+            "",
+            f"{v['steps']} steps watched; the teacher's pose was known on "
+            f"{_pct(v['seen_fraction'])} of them (median position error "
+            f"{v['teacher_position_error_cm']['median']:.2f} cm). Correct recognition on "
+            "those steps, from the camera and from the truth:",
+            "",
+            "| Performing | camera | truth, same steps | camera, motor-weighted | "
+            "truth, same steps, motor-weighted |",
+            "|---|---|---|---|---|",
+        ]
         vw = rec.get("vision_motor_weighted")
         for t in words:
-            extra = (f" {_pct(vw['vision']['confusion'][t][t])} | "
-                     f"{_pct(vw['truth_same_steps']['confusion'][t][t])} |") if vw else " - | - |"
-            lines.append(f"| '{t}' | {_pct(v['vision']['confusion'][t][t])} | "
-                         f"{_pct(v['truth_same_steps']['confusion'][t][t])} |" + extra)
+            extra = (
+                (
+                    f" {_pct(vw['vision']['confusion'][t][t])} | "
+                    f"{_pct(vw['truth_same_steps']['confusion'][t][t])} |"
+                )
+                if vw
+                else " - | - |"
+            )
+            lines.append(
+                f"| '{t}' | {_pct(v['vision']['confusion'][t][t])} | "
+                f"{_pct(v['truth_same_steps']['confusion'][t][t])} |" + extra
+            )
         lines.append("")
     perf = res["performance"]
     if perf:
         ref = perf.get("teacher_reference", {})
-        lines += ["## Performance on instruction (success rates)", "",
-                  "| Instruction | student | teacher (reference) |", "|---|---|---|"]
-        names = {"go": "'go' (anywhere)", "pick": "'pick' (table's wall)",
-                 "pick_other_wall": "'pick' started at another wall", "lift": "'lift' (docked)"}
+        lines += [
+            "## Performance on instruction (success rates)",
+            "",
+            "| Instruction | student | teacher (reference) |",
+            "|---|---|---|",
+        ]
+        names = {
+            "go": "'go' (anywhere)",
+            "pick": "'pick' (table's wall)",
+            "pick_other_wall": "'pick' started at another wall",
+            "lift": "'lift' (docked)",
+        }
         for row in ("go", "pick", "pick_other_wall", "lift"):
             if row not in perf:
                 continue
             s = perf[row]
             r = ref.get(row)
-            lines.append(f"| {names[row]} | {_pct(s['success_rate'])} ({s['successes']}/"
-                         f"{s['trials']}) | " + (f"{_pct(r['success_rate'])} ({r['successes']}/"
-                                                 f"{r['trials']})" if r else "n/a") + " |")
+            lines.append(
+                f"| {names[row]} | {_pct(s['success_rate'])} ({s['successes']}/"
+                f"{s['trials']}) | "
+                + (f"{_pct(r['success_rate'])} ({r['successes']}/{r['trials']})" if r else "n/a")
+                + " |"
+            )
         lines.append("")
     lines += ["## Time", "", "| Stage | seconds |", "|---|---|"]
     for stage, seconds in res["seconds_per_stage"].items():

@@ -85,8 +85,15 @@ class ReproduceConfig:
     @classmethod
     def quick(cls, **overrides) -> ReproduceConfig:
         """Returns the same stages at a small scale (about 3 minutes on 2 cores)."""
-        values = dict(train_steps=60_000, test_steps=20_000, vision_test_steps=600, trials=3,
-                      trial_seconds=40.0, video_width=320, video_height=240)
+        values = dict(
+            train_steps=60_000,
+            test_steps=20_000,
+            vision_test_steps=600,
+            trials=3,
+            trial_seconds=40.0,
+            video_width=320,
+            video_height=240,
+        )
         values.update(overrides)
         return cls(**values)
 
@@ -127,60 +134,91 @@ def _poll(futures: list, progress_files: list, total: int, desc: str):
 
 def stage_streams(config: ReproduceConfig, folder: pathlib.Path) -> dict:
     streams = folder / "streams"
-    jobs = [(config.seed * 2 + 1, config.train_steps, "train"),
-            (config.seed * 2 + 2, config.test_steps, "test")]
+    jobs = [
+        (config.seed * 2 + 1, config.train_steps, "train"),
+        (config.seed * 2 + 2, config.test_steps, "test"),
+    ]
     progress = [streams / f"{name}.progress" for _, _, name in jobs]
     streams.mkdir(parents=True, exist_ok=True)
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(max_workers=min(config.workers, 2),
-                                                mp_context=context) as pool:
-        futures = [pool.submit(_stream_worker, seed, n, str(streams), name, str(p))
-                   for (seed, n, name), p in zip(jobs, progress)]
-        paths = _poll(futures, progress, config.train_steps + config.test_steps,
-                      "teacher streams (train + test)")
+    with concurrent.futures.ProcessPoolExecutor(
+        max_workers=min(config.workers, 2), mp_context=context
+    ) as pool:
+        futures = [
+            pool.submit(_stream_worker, seed, n, str(streams), name, str(p))
+            for (seed, n, name), p in zip(jobs, progress, strict=True)
+        ]
+        paths = _poll(
+            futures,
+            progress,
+            config.train_steps + config.test_steps,
+            "teacher streams (train + test)",
+        )
     for p in progress:
         p.unlink(missing_ok=True)
     out = {}
-    for (_, _, name), path in zip(jobs, paths):
+    for (_, _, name), path in zip(jobs, paths, strict=True):
         stream = TeacherStream.load(path)
-        out[name] = {"path": str(pathlib.Path(path).relative_to(folder)), "steps": len(stream),
-                     "time_share": {w: float(np.mean(stream.word == i))
-                                    for i, w in enumerate(directives.WORDS)}}
+        out[name] = {
+            "path": str(pathlib.Path(path).relative_to(folder)),
+            "steps": len(stream),
+            "time_share": {
+                w: float(np.mean(stream.word == i)) for i, w in enumerate(directives.WORDS)
+            },
+        }
     return out
 
 
 def stage_learning(config: ReproduceConfig, folder: pathlib.Path, encoder) -> dict:
     stream = TeacherStream.load(folder / "streams" / "train.npz")
     model = Associator(**config.network_params())
-    model = learning.train(model, stream, folder / "network.npz", encoder=encoder,
-                           motor_source=config.motor_source)
-    return {"network": "network.npz", "steps": int(model.n_steps_),
-            "params": {k: (list(v) if isinstance(v, tuple) else v)
-                       for k, v in model.get_params().items()}}
+    model = learning.train(
+        model, stream, folder / "network.npz", encoder=encoder, motor_source=config.motor_source
+    )
+    return {
+        "network": "network.npz",
+        "steps": int(model.n_steps_),
+        "params": {
+            k: (list(v) if isinstance(v, tuple) else v) for k, v in model.get_params().items()
+        },
+    }
 
 
 def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, encoder) -> dict:
     stream = TeacherStream.load(folder / "streams" / "test.npz")
     out = {"readouts": dict(recognition.READOUTS)}
     for name, gain in recognition.READOUTS.items():
-        recognised = recognition.recognise_stream(model, stream, encoder, config.motor_source,
-                                                  motor_gain=gain)
+        recognised = recognition.recognise_stream(
+            model, stream, encoder, config.motor_source, motor_gain=gain
+        )
         key = "truth" if name == "paper" else f"truth_{name}"
         out[key] = recognition.table(recognition.confusion_counts(stream.word, recognised))
         if name == "paper":
             np.save(folder / "recognised_test.npy", recognised)
     if config.vision != "truth":
-        observed = recognition.watch_with_vision(config.seed * 2 + 3, config.vision_test_steps,
-                                                 config.vision)
-        out["vision"] = recognition.recognise_observed(model, observed, encoder,
-                                                       config.motor_source)
+        observed = recognition.watch_with_vision(
+            config.seed * 2 + 3, config.vision_test_steps, config.vision
+        )
+        out["vision"] = recognition.recognise_observed(
+            model, observed, encoder, config.motor_source
+        )
         out["vision_motor_weighted"] = recognition.recognise_observed(
-            model, observed, encoder, config.motor_source,
-            motor_gain=recognition.READOUTS["motor_weighted"])
-        error = np.hypot(*(observed.observed.pose_world[observed.seen, :2]
-                           - observed.truth.pose_world[observed.seen, :2]).T)
+            model,
+            observed,
+            encoder,
+            config.motor_source,
+            motor_gain=recognition.READOUTS["motor_weighted"],
+        )
+        error = np.hypot(
+            *(
+                observed.observed.pose_world[observed.seen, :2]
+                - observed.truth.pose_world[observed.seen, :2]
+            ).T
+        )
         out["vision"]["teacher_position_error_cm"] = {
-            "median": float(np.median(error) * 100), "p95": float(np.percentile(error, 95) * 100)}
+            "median": float(np.median(error) * 100),
+            "p95": float(np.percentile(error, 95) * 100),
+        }
     return out
 
 

@@ -30,13 +30,19 @@ class RunState:
             try:
                 saved = json.loads(self.path.read_text())
             except json.JSONDecodeError as error:
-                raise ValueError(f"{self.path} is corrupt ({error}); delete it or pass --fresh") from None
+                raise ValueError(
+                    f"{self.path} is corrupt ({error}); delete it or pass --fresh"
+                ) from None
             if saved.get("config") != config:
-                changed = sorted(k for k in set(saved.get("config", {})) | set(config)
-                                 if saved.get("config", {}).get(k) != config.get(k))
+                changed = sorted(
+                    k
+                    for k in set(saved.get("config", {})) | set(config)
+                    if saved.get("config", {}).get(k) != config.get(k)
+                )
                 raise ValueError(
                     f"{self.folder} holds a run with other settings ({', '.join(changed)}); use "
-                    "another --out folder or --fresh to start over")
+                    "another --out folder or --fresh to start over"
+                )
             self.data = saved
         else:
             self.data = {"config": config, "stages": {}}

@@ -27,8 +27,17 @@ from perception.wallframe import world_to_wall
 _QPOS_SIZE = {0: 7, 1: 4, 2: 1, 3: 1}  # free, ball, slide, hinge
 _DOF_SIZE = {0: 6, 1: 3, 2: 1, 3: 1}
 
-STREAM_FIELDS = ("x_world", "y_world", "yaw", "x_wall", "y_wall", "phi_deg", "word", "directive",
-                 "motor_changed")
+STREAM_FIELDS = (
+    "x_world",
+    "y_world",
+    "yaw",
+    "x_wall",
+    "y_wall",
+    "phi_deg",
+    "word",
+    "directive",
+    "motor_changed",
+)
 
 
 @dataclasses.dataclass
@@ -55,11 +64,14 @@ class TeacherStream:
     @classmethod
     def concatenate(cls, parts) -> TeacherStream:
         parts = list(parts)
-        return cls(*(np.concatenate([getattr(p, f.name) for p in parts])
-                     for f in dataclasses.fields(cls)))
+        return cls(
+            *(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(cls))
+        )
 
     def save(self, path) -> None:
-        np.savez_compressed(path, **{f.name: getattr(self, f.name) for f in dataclasses.fields(self)})
+        np.savez_compressed(
+            path, **{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        )
 
     @classmethod
     def load(cls, path) -> TeacherStream:
@@ -90,16 +102,29 @@ class StreamGenerator:
             for geom in entity.mjcf_model.find_all("geom"):
                 bind(geom).contype = 0
                 bind(geom).conaffinity = 0
-            body = entity.mjcf_model.find_all("body")[0] if entity is self.task._object \
+            body = (
+                entity.mjcf_model.find_all("body")[0]
+                if entity is self.task._object
                 else entity.root_body
+            )
             frozen_roots.add(int(model.body_rootid[bind(body).element_id]))
-        joints = [j for j in range(model.njnt) if model.body_rootid[model.jnt_bodyid[j]] in frozen_roots]
-        self._frozen_qpos = np.concatenate([
-            np.arange(model.jnt_qposadr[j], model.jnt_qposadr[j] + _QPOS_SIZE[model.jnt_type[j]])
-            for j in joints])
-        self._frozen_dof = np.concatenate([
-            np.arange(model.jnt_dofadr[j], model.jnt_dofadr[j] + _DOF_SIZE[model.jnt_type[j]])
-            for j in joints])
+        joints = [
+            j for j in range(model.njnt) if model.body_rootid[model.jnt_bodyid[j]] in frozen_roots
+        ]
+        self._frozen_qpos = np.concatenate(
+            [
+                np.arange(
+                    model.jnt_qposadr[j], model.jnt_qposadr[j] + _QPOS_SIZE[model.jnt_type[j]]
+                )
+                for j in joints
+            ]
+        )
+        self._frozen_dof = np.concatenate(
+            [
+                np.arange(model.jnt_dofadr[j], model.jnt_dofadr[j] + _DOF_SIZE[model.jnt_type[j]])
+                for j in joints
+            ]
+        )
         self._m, self._d = self.physics.model.ptr, self.physics.data.ptr
         mujoco.mj_forward(self._m, self._d)
         self._frozen_values = self._d.qpos[self._frozen_qpos].copy()
@@ -136,7 +161,9 @@ class StreamGenerator:
         physics_state = np.asarray(state["physics"], dtype=float)
         size = mujoco.mj_stateSize(self._m, mujoco.mjtState.mjSTATE_INTEGRATION)
         if physics_state.shape != (size,):
-            raise ValueError(f"physics state has {physics_state.size} values, this model needs {size}")
+            raise ValueError(
+                f"physics state has {physics_state.size} values, this model needs {size}"
+            )
         mujoco.mj_setState(self._m, self._d, physics_state, mujoco.mjtState.mjSTATE_INTEGRATION)
         # Positions only: a full mj_forward would also run the solver and change its warm start.
         mujoco.mj_kinematics(self._m, self._d)
@@ -147,7 +174,7 @@ class StreamGenerator:
     def teacher_pose(self) -> np.ndarray:
         """Returns the teacher's ``[x, y, yaw]`` (m, m, rad), world frame."""
         # From the free joint's qpos: current after mj_step (xpos lags one physics step behind).
-        x, y, _, w, qx, qy, qz = self._d.qpos[self._teacher_qpos:self._teacher_qpos + 7]
+        x, y, _, w, qx, qy, qz = self._d.qpos[self._teacher_qpos : self._teacher_qpos + 7]
         return np.array([x, y, np.arctan2(2 * (w * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))])
 
     def generate(self, n_steps: int, progress=None) -> TeacherStream:
@@ -189,8 +216,16 @@ class StreamGenerator:
         return TeacherStream(pose_world, pose_wall, word, directive, changed)
 
 
-def generate_resumable(seed: int, n_steps: int, folder, name: str, *, chunk: int = 100_000,
-                       config: TaskConfig | None = None, progress_file=None) -> pathlib.Path:
+def generate_resumable(
+    seed: int,
+    n_steps: int,
+    folder,
+    name: str,
+    *,
+    chunk: int = 100_000,
+    config: TaskConfig | None = None,
+    progress_file=None,
+) -> pathlib.Path:
     """Generates a stream of ``n_steps`` into ``folder/name.npz`` in chunks, checkpointing after each
     one (its rows and the generator's state), so an interrupted call resumes where it stopped and
     gives the same stream. Returns the stream's path.
@@ -212,10 +247,12 @@ def generate_resumable(seed: int, n_steps: int, folder, name: str, *, chunk: int
         parts = parts[: state["parts"]]
     done = generator.steps_done
 
-    def report(increment, _state={"done": done}):
-        _state["done"] += increment
-        if progress_file is not None and _state["done"] % 10_000 < 1000:
-            pathlib.Path(progress_file).write_text(str(_state["done"]))
+    counter = {"done": done}
+
+    def report(increment):
+        counter["done"] += increment
+        if progress_file is not None and counter["done"] % 10_000 < 1000:
+            pathlib.Path(progress_file).write_text(str(counter["done"]))
 
     while done < n_steps:
         stream = generator.generate(min(chunk, n_steps - done), progress=report)

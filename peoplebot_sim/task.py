@@ -65,9 +65,13 @@ class TaskConfig:
         for name in ("width", "height"):
             value = getattr(self, name)
             if not isinstance(value, (int, np.integer)) or not 16 <= value <= 1280:
-                raise ValueError(f"{name} must be an integer number of pixels in [16, 1280], got {value!r}")
+                raise ValueError(
+                    f"{name} must be an integer number of pixels in [16, 1280], got {value!r}"
+                )
         if self.height > 960:
-            raise ValueError(f"height must be at most 960 pixels (the model's offheight), got {self.height}")
+            raise ValueError(
+                f"height must be at most 960 pixels (the model's offheight), got {self.height}"
+            )
         for name in ("control_timestep", "physics_timestep"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -76,14 +80,16 @@ class TaskConfig:
         if abs(ratio - round(ratio)) > 1e-6:
             raise ValueError(
                 f"control_timestep {self.control_timestep} must be a multiple of physics_timestep "
-                f"{self.physics_timestep}")
+                f"{self.physics_timestep}"
+            )
         if not self.time_limit > 0:
             raise ValueError(f"time_limit must be positive seconds, got {self.time_limit!r}")
         for name in ("student_pose", "teacher_pose"):
             pose = getattr(self, name)
             if pose is not None and (len(pose) != 3 or not np.all(np.isfinite(pose))):
-                raise ValueError(f"{name} must be None or three finite numbers (x m, y m, yaw rad), "
-                                 f"got {pose!r}")
+                raise ValueError(
+                    f"{name} must be None or three finite numbers (x m, y m, yaw rad), got {pose!r}"
+                )
 
 
 class ImitationTask(composer.Task):
@@ -141,22 +147,40 @@ class ImitationTask(composer.Task):
             "student_pose": observable.Generic(self._student.planar_pose),
             "student_wall_pose": observable.Generic(lambda p: self._wall_pose(self._student, p)),
             # Proprioception, as on the real robot: wheel encoders and head joint angles (rad).
-            "student_wheel_angles": observable.Generic(lambda p: np.array(
-                [named_qpos(p, "student/left_wheel"), named_qpos(p, "student/right_wheel")])),
-            "student_head_angles": observable.Generic(lambda p: np.array(
-                [named_qpos(p, "student/head_pan"), named_qpos(p, "student/head_tilt")])),
+            "student_wheel_angles": observable.Generic(
+                lambda p: np.array(
+                    [named_qpos(p, "student/left_wheel"), named_qpos(p, "student/right_wheel")]
+                )
+            ),
+            "student_head_angles": observable.Generic(
+                lambda p: np.array(
+                    [named_qpos(p, "student/head_pan"), named_qpos(p, "student/head_tilt")]
+                )
+            ),
         }
         if self._teacher is not None:
             obs["teacher_pose"] = observable.Generic(self._teacher.planar_pose)
-            obs["teacher_wall_pose"] = observable.Generic(lambda p: self._wall_pose(self._teacher, p))
+            obs["teacher_wall_pose"] = observable.Generic(
+                lambda p: self._wall_pose(self._teacher, p)
+            )
             obs["teacher_word"] = observable.Generic(
-                lambda _: np.array(directives.word_index(self.teacher_controller.word), np.int32))
+                lambda _: np.array(directives.word_index(self.teacher_controller.word), np.int32)
+            )
             obs["teacher_directive"] = observable.Generic(
-                lambda _: np.array(directives.directive_index(self._last_directive), np.int32))
+                lambda _: np.array(directives.directive_index(self._last_directive), np.int32)
+            )
         obs["overhead_camera"] = observable.MJCFCamera(
-            self._arena.overhead_camera, width=c.width, height=c.height, render_flag_overrides=no_shadow)
+            self._arena.overhead_camera,
+            width=c.width,
+            height=c.height,
+            render_flag_overrides=no_shadow,
+        )
         obs["head_camera"] = observable.MJCFCamera(
-            self._student.head_camera, width=c.width, height=c.height, render_flag_overrides=no_shadow)
+            self._student.head_camera,
+            width=c.width,
+            height=c.height,
+            render_flag_overrides=no_shadow,
+        )
         # With composer's default update interval, delay and buffer size, each observable is computed
         # once per control step, after its last substep.
         for name, ob in obs.items():
@@ -176,8 +200,12 @@ class ImitationTask(composer.Task):
         acts = [self._student.actuators[n] for n in ACTION_NAMES]
         ranges = physics.bind(acts).ctrlrange
         self._action_spec = specs.BoundedArray(
-            shape=(len(acts),), dtype=np.float64, minimum=ranges[:, 0], maximum=ranges[:, 1],
-            name="\t".join(f"{n} ({u})" for n, u in zip(ACTION_NAMES, ACTION_UNITS)))
+            shape=(len(acts),),
+            dtype=np.float64,
+            minimum=ranges[:, 0],
+            maximum=ranges[:, 1],
+            name="\t".join(f"{n} ({u})" for n, u in zip(ACTION_NAMES, ACTION_UNITS, strict=True)),
+        )
         return self._action_spec
 
     def get_reward(self, physics):
@@ -195,8 +223,9 @@ class ImitationTask(composer.Task):
         the configuration's)."""
         for name, pose in (("student_pose", student_pose), ("teacher_pose", teacher_pose)):
             if pose is not None and (len(pose) != 3 or not np.all(np.isfinite(pose))):
-                raise ValueError(f"{name} must be None or three finite numbers (x m, y m, yaw rad), "
-                                 f"got {pose!r}")
+                raise ValueError(
+                    f"{name} must be None or three finite numbers (x m, y m, yaw rad), got {pose!r}"
+                )
         self._start_override = (student_pose, teacher_pose)
 
     def initialize_episode(self, physics, random_state):
@@ -207,17 +236,25 @@ class ImitationTask(composer.Task):
         physics.named.data.qpos["student/head_pan"] = 0.0
         physics.named.data.qpos["student/head_tilt"] = 0.0
         if self._teacher is not None:
-            pose = (teacher_override or self.config.teacher_pose
-                    or self.random_free_pose(rng, avoid=student_pose))
+            pose = (
+                teacher_override
+                or self.config.teacher_pose
+                or self.random_free_pose(rng, avoid=student_pose)
+            )
             self._teacher.set_planar_pose(physics, *pose)
-        self._object.set_pose(physics, position=np.array(entities.OBJECT_POSITION),
-                              quaternion=np.array([1.0, 0, 0, 0]))
+        self._object.set_pose(
+            physics,
+            position=np.array(entities.OBJECT_POSITION),
+            quaternion=np.array([1.0, 0, 0, 0]),
+        )
         self.teacher_controller.reset(rng)
         self._last_directive = self.teacher_controller.directive
         self.collisions = 0
         self._in_contact = False
 
-    def random_free_pose(self, rng, avoid=None, margin_m: float = 0.6) -> tuple[float, float, float]:
+    def random_free_pose(
+        self, rng, avoid=None, margin_m: float = 0.6
+    ) -> tuple[float, float, float]:
         """Returns a random ``(x, y, yaw)`` at least ``margin_m`` from walls, clear of the table and of
         the pose ``avoid``."""
         h = self.geometry.half_side_m - margin_m
@@ -233,15 +270,19 @@ class ImitationTask(composer.Task):
         action = np.asarray(action, dtype=float)
         spec = self.action_spec(physics)
         if action.shape != spec.shape:
-            raise ValueError(f"action must have shape {spec.shape} ({', '.join(ACTION_NAMES)}), "
-                             f"got {action.shape}")
+            raise ValueError(
+                f"action must have shape {spec.shape} ({', '.join(ACTION_NAMES)}), "
+                f"got {action.shape}"
+            )
         if not np.all(np.isfinite(action)):
             raise ValueError(f"action must be finite, got {action}")
         bad = (action < spec.minimum - 1e-9) | (action > spec.maximum + 1e-9)
         if np.any(bad):
             i = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"action {ACTION_NAMES[i]}={action[i]} is outside "
-                             f"[{spec.minimum[i]}, {spec.maximum[i]}] {ACTION_UNITS[i]}")
+            raise ValueError(
+                f"action {ACTION_NAMES[i]}={action[i]} is outside "
+                f"[{spec.minimum[i]}, {spec.maximum[i]}] {ACTION_UNITS[i]}"
+            )
         physics.data.ctrl[self._actuator_ids(physics)] = action
         if self._teacher is not None:
             self.drive_teacher(physics)
@@ -251,10 +292,13 @@ class ImitationTask(composer.Task):
         if getattr(self, "_ids_key", None) != key:
             bind = physics.bind
             self._student_ids = np.array(
-                [bind(self._student.actuators[n]).element_id for n in ACTION_NAMES])
+                [bind(self._student.actuators[n]).element_id for n in ACTION_NAMES]
+            )
             if self._teacher is not None:
-                self._teacher_ids = (bind(self._teacher.actuators["forward"]).element_id,
-                                     bind(self._teacher.actuators["turn"]).element_id)
+                self._teacher_ids = (
+                    bind(self._teacher.actuators["forward"]).element_id,
+                    bind(self._teacher.actuators["turn"]).element_id,
+                )
             self._action_spec = None
             self._ids_key = key
         return self._student_ids
@@ -263,7 +307,8 @@ class ImitationTask(composer.Task):
         """Steps the teacher's controller and sets its wheel servos; returns its directive."""
         student = self._student.planar_pose(physics)
         directive = self.teacher_controller.step(
-            self._teacher.planar_pose(physics), student, self.config.control_timestep)
+            self._teacher.planar_pose(physics), student, self.config.control_timestep
+        )
         self._actuator_ids(physics)
         physics.data.ctrl[list(self._teacher_ids)] = self.config.drive.command(directive)
         self._last_directive = directive
@@ -296,13 +341,19 @@ def robot_touches_obstacle(physics, robot, task) -> bool:
             continue
         other_body = b2 if r1 == robot_root else b1
         other_root = r2 if r1 == robot_root else r1
-        name = model.id2name(contact.geom2[i] if r1 == robot_root else contact.geom1[i], "geom") or ""
+        name = (
+            model.id2name(contact.geom2[i] if r1 == robot_root else contact.geom1[i], "geom") or ""
+        )
         if other_root == 0 and name.startswith("wall"):
             return True
         if other_root == table_root:
             return True
-        if other_root != 0 and other_root != robot_root and other_body != 0 and \
-                model.id2name(other_root, "body") in ("student/base", "teacher/base"):
+        if (
+            other_root != 0
+            and other_root != robot_root
+            and other_body != 0
+            and model.id2name(other_root, "body") in ("student/base", "teacher/base")
+        ):
             return True
     return False
 
@@ -319,14 +370,20 @@ class Environment(composer.Environment):
         super().__init__(task, **kwargs)
         hooks = self._hooks
         no_substep_hooks = not (
-            hooks._before_substep.entity_hooks or hooks._before_substep.extra_hooks
-            or hooks._after_substep.entity_hooks or hooks._after_substep.extra_hooks)
+            hooks._before_substep.entity_hooks
+            or hooks._before_substep.extra_hooks
+            or hooks._after_substep.entity_hooks
+            or hooks._after_substep.extra_hooks
+        )
         # Composer leaves delay and buffer size as None (meaning its defaults, 0 and 1).
         default_schedules = all(
             ob.update_interval == 1 and ob.delay in (None, 0) and ob.buffer_size in (None, 1)
-            for ob in task.observables.values())
-        task_hooks = (type(task).before_substep is composer.Task.before_substep
-                      and type(task).after_substep is composer.Task.after_substep)
+            for ob in task.observables.values()
+        )
+        task_hooks = (
+            type(task).before_substep is composer.Task.before_substep
+            and type(task).after_substep is composer.Task.after_substep
+        )
         self._fused = no_substep_hooks and default_schedules and task_hooks
 
     def step(self, action):
@@ -340,8 +397,10 @@ class Environment(composer.Environment):
         self._observation_updater._step_counter += self._n_sub_steps - 1
         self._hooks.after_step(self._physics_proxy, self._random_state)
         self._observation_updater.update()
-        terminating = (self._task.should_terminate_episode(self._physics_proxy)
-                       or self._physics.time() >= self._time_limit)
+        terminating = (
+            self._task.should_terminate_episode(self._physics_proxy)
+            or self._physics.time() >= self._time_limit
+        )
         obs = self._observation_updater.get_observation()
         reward = self._task.get_reward(self._physics_proxy)
         discount = self._task.get_discount(self._physics_proxy)
@@ -361,5 +420,10 @@ def load(config: TaskConfig | None = None, seed=None, **overrides) -> Environmen
     config = dataclasses.replace(config or TaskConfig(), **overrides)
     task = ImitationTask(config)
     # The model never changes between episodes: compile it once (composer recompiles by default).
-    return Environment(task, random_state=seed, strip_singleton_obs_buffer_dim=True,
-                       raise_exception_on_physics_error=True, recompile_mjcf_every_episode=False)
+    return Environment(
+        task,
+        random_state=seed,
+        strip_singleton_obs_buffer_dim=True,
+        raise_exception_on_physics_error=True,
+        recompile_mjcf_every_episode=False,
+    )

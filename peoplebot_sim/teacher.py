@@ -76,7 +76,8 @@ class TeacherConfig:
     stuck_seconds: float = 4.0
     stuck_distance_m: float = 0.05
     max_seconds: dict = dataclasses.field(
-        default_factory=lambda: {"go": 900.0, "pick": 60.0, "lift": 30.0})
+        default_factory=lambda: {"go": 900.0, "pick": 60.0, "lift": 30.0}
+    )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -98,8 +99,12 @@ class Teacher:
       rng: seed or ``np.random.Generator`` for the jitter of turn angles and directions.
     """
 
-    def __init__(self, config: TeacherConfig = TeacherConfig(), arena: ArenaGeometry = ArenaGeometry(),
-                 rng=None):
+    def __init__(
+        self,
+        config: TeacherConfig = TeacherConfig(),
+        arena: ArenaGeometry = ArenaGeometry(),
+        rng=None,
+    ):
         self.config = config
         self.arena = arena
         self.reset(rng)
@@ -120,15 +125,27 @@ class Teacher:
         self._turn_target_deg = 0.0
         self._obstacle_bearing = 0.0
 
-    _STATE_FIELDS = ("word", "directive", "time_s", "cycles_completed", "phase", "loop", "finished",
-                     "_behaviour_start_s", "_progress_anchor", "_turn_sign", "_turn_target_deg",
-                     "_obstacle_bearing")
+    _STATE_FIELDS = (
+        "word",
+        "directive",
+        "time_s",
+        "cycles_completed",
+        "phase",
+        "loop",
+        "finished",
+        "_behaviour_start_s",
+        "_progress_anchor",
+        "_turn_sign",
+        "_turn_target_deg",
+        "_obstacle_bearing",
+    )
 
     def get_state(self) -> dict:
         """Returns the controller's full state as plain JSON-able values (for checkpoints)."""
         state = {name: getattr(self, name) for name in self._STATE_FIELDS}
-        state["_progress_anchor"] = (None if self._progress_anchor is None
-                                     else [float(v) for v in self._progress_anchor])
+        state["_progress_anchor"] = (
+            None if self._progress_anchor is None else [float(v) for v in self._progress_anchor]
+        )
         state["events"] = [dataclasses.asdict(e) for e in self.events]
         state["rng"] = self._rng.bit_generator.state
         return state
@@ -142,8 +159,10 @@ class Teacher:
             setattr(self, name, state[name])
         if self._progress_anchor is not None:
             self._progress_anchor = tuple(self._progress_anchor)
-        self.events = [WatchdogEvent(e["time_s"], e["behaviour"], e["reason"], tuple(e["pose"]))
-                       for e in state.get("events", [])]
+        self.events = [
+            WatchdogEvent(e["time_s"], e["behaviour"], e["reason"], tuple(e["pose"]))
+            for e in state.get("events", [])
+        ]
         self._rng = np.random.default_rng()
         self._rng.bit_generator.state = state["rng"]
 
@@ -251,8 +270,12 @@ class Teacher:
     def _go(self, x, y, yaw, student):
         c = self.config
         wall = world_to_wall(x, y, yaw, self.arena)
-        if getattr(self, "loop", True) and (wall.wall == "top" and wall.x_m < c.pick_max_x_m and abs(wall.y_m) < c.pick_max_abs_y_m
-                and abs(wall.phi_deg) < c.pick_max_abs_phi_deg):
+        if getattr(self, "loop", True) and (
+            wall.wall == "top"
+            and wall.x_m < c.pick_max_x_m
+            and abs(wall.y_m) < c.pick_max_abs_y_m
+            and abs(wall.phi_deg) < c.pick_max_abs_phi_deg
+        ):
             self._enter("pick", "line_up")
             return self._pick(x, y, yaw, student)
         if self.phase == "backoff":
@@ -264,7 +287,9 @@ class Teacher:
             away = abs(wrap_degrees(math.degrees(yaw - self._obstacle_bearing)))
             if away < self._turn_target_deg or bearing is not None:
                 if bearing is not None and away >= self._turn_target_deg:
-                    self._obstacle_bearing = bearing  # a corner: keep turning away from the next wall
+                    self._obstacle_bearing = (
+                        bearing  # a corner: keep turning away from the next wall
+                    )
                 return "turn_left" if self._turn_sign > 0 else "turn_right"
             self.phase = "drive"
             return "forward"
@@ -341,7 +366,9 @@ class Teacher:
                 if math.hypot(x - x0, y - y0) >= c.stuck_distance_m:
                     self._progress_anchor = (self.time_s, x, y)
                 elif self.time_s - t0 > c.stuck_seconds:
-                    reason = f"moved under {c.stuck_distance_m} m in {c.stuck_seconds} s while driving"
+                    reason = (
+                        f"moved under {c.stuck_distance_m} m in {c.stuck_seconds} s while driving"
+                    )
         else:
             self._progress_anchor = None
         if reason is not None:

@@ -26,8 +26,8 @@ from peoplebot_sim import cameras
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import ImitationTask, TaskConfig
 from perception import layout as marker_layout
-from perception.pantilt import PanTiltLimits, aim_at, head_camera
 from perception.markers import DetectorConfig
+from perception.pantilt import PanTiltLimits, aim_at, head_camera
 from perception.pipeline import Tracker
 from perception.wallframe import wrap_degrees
 
@@ -59,11 +59,17 @@ def _teacher_pose(task: ImitationTask, rng, category: str) -> tuple:
         sx, sy = rng.choice([-1, 1], size=2)
         if sy > 0 and sx > 0:
             pass
-        return (sx * (h - rng.uniform(0.45, 0.8)), sy * (h - rng.uniform(0.45, 0.8)),
-                rng.uniform(-math.pi, math.pi))
+        return (
+            sx * (h - rng.uniform(0.45, 0.8)),
+            sy * (h - rng.uniform(0.45, 0.8)),
+            rng.uniform(-math.pi, math.pi),
+        )
     dock = task.teacher_controller.dock_pose
-    return (dock[0] + rng.normal(0, 0.03), dock[1] + rng.normal(0, 0.02),
-            dock[2] + math.radians(rng.normal(0, 3)))
+    return (
+        dock[0] + rng.normal(0, 0.03),
+        dock[1] + rng.normal(0, 0.02),
+        dock[2] + math.radians(rng.normal(0, 3)),
+    )
 
 
 def _overhead_student(task, rng, teacher) -> tuple:
@@ -92,8 +98,15 @@ def _set_pose(task, physics, robot, pose):
     robot.set_planar_pose(physics, *pose)
 
 
-def run(n_samples: int = 200, width: int = 320, height: int = 240, seed: int = 0,
-        out_path=None, progress: bool = True, detector_config: DetectorConfig | None = None) -> dict:
+def run(
+    n_samples: int = 200,
+    width: int = 320,
+    height: int = 240,
+    seed: int = 0,
+    out_path=None,
+    progress: bool = True,
+    detector_config: DetectorConfig | None = None,
+) -> dict:
     """Runs the bench; returns (and writes, if ``out_path``) its figures as a dict."""
     if n_samples <= 0:
         raise ValueError(f"n_samples must be positive, got {n_samples}")
@@ -111,7 +124,8 @@ def run(n_samples: int = 200, width: int = 320, height: int = 240, seed: int = 0
         for view in ("overhead", "head"):
             tracker = Tracker(
                 detector_config=detector_config or DetectorConfig(),
-                robots=("teacher", "student") if view == "overhead" else ("teacher",))
+                robots=("teacher", "student") if view == "overhead" else ("teacher",),
+            )
             errors = {"teacher": [], "student": []}
             seen = {"teacher": 0, "student": 0}
             total = 0
@@ -162,10 +176,12 @@ def run(n_samples: int = 200, width: int = 320, height: int = 240, seed: int = 0
                     if robot == "teacher":
                         per_category[category]["seen"] += 1
                     truth = truths[robot]
-                    errors[robot].append((
-                        100.0 * math.hypot(estimate.x_m - truth[0], estimate.y_m - truth[1]),
-                        abs(float(wrap_degrees(math.degrees(estimate.yaw_rad - truth[2])))),
-                    ))
+                    errors[robot].append(
+                        (
+                            100.0 * math.hypot(estimate.x_m - truth[0], estimate.y_m - truth[1]),
+                            abs(float(wrap_degrees(math.degrees(estimate.yaw_rad - truth[2])))),
+                        )
+                    )
             figures = {}
             for robot in tracker.robots:
                 e = np.array(errors[robot]).reshape(-1, 2)
@@ -178,13 +194,19 @@ def run(n_samples: int = 200, width: int = 320, height: int = 240, seed: int = 0
             results[view] = {
                 "robots": figures,
                 "teacher_detection_by_category": {
-                    c: v["seen"] / v["n"] if v["n"] else None for c, v in per_category.items()},
+                    c: v["seen"] / v["n"] if v["n"] else None for c, v in per_category.items()
+                },
                 "render_only_fps": total / render_s if render_s else None,
                 "render_and_track_fps": total / (render_s + track_s) if render_s else None,
                 "tracking_share_of_render_time": track_s / render_s if render_s else None,
             }
-    report = {"width": width, "height": height, "samples": n_samples, "seed": seed,
-              "viewpoints": results}
+    report = {
+        "width": width,
+        "height": height,
+        "samples": n_samples,
+        "seed": seed,
+        "viewpoints": results,
+    }
     if out_path is not None:
         out_path = pathlib.Path(out_path)
         out_path.parent.mkdir(parents=True, exist_ok=True)

@@ -7,7 +7,6 @@ import multiprocessing
 import pathlib
 
 import numpy as np
-from tqdm import tqdm
 
 from associator import encoding, persistence
 from peoplebot_sim import performance
@@ -28,15 +27,17 @@ def trial_plan(trials: int, seed: int) -> list[dict]:
             for policy in performance.POLICIES:
                 if policy == "teacher" and row == "pick_other_wall":
                     continue
-                plan.append({"row": row, "policy": policy, "index": k, "start": list(start),
-                             "wall": wall})
+                plan.append(
+                    {"row": row, "policy": policy, "index": k, "start": list(start), "wall": wall}
+                )
     return plan
 
 
 def _environment(vision: str, seed: int, width: int = 320, height: int = 240):
     cameras = ("overhead",) if vision == "overhead" else ()
-    env = load(TaskConfig(with_teacher=False, cameras=cameras, width=width, height=height),
-               seed=seed)
+    env = load(
+        TaskConfig(with_teacher=False, cameras=cameras, width=width, height=height), seed=seed
+    )
     env.reset()
     return env
 
@@ -51,8 +52,9 @@ def _agent(policy: str, word: str, env, model, vision: str, calibration, rng=Non
     return performance.StudentAgent(model, word, student_vision, encoding.VisionEncoder(), spec)
 
 
-def _trials_worker(plan: list, network: str, vision: str, seconds: float, seed: int,
-                   progress_file: str) -> list[dict]:
+def _trials_worker(
+    plan: list, network: str, vision: str, seconds: float, seed: int, progress_file: str
+) -> list[dict]:
     import peoplebot_sim  # noqa: F401
 
     model = persistence.load(network)
@@ -62,31 +64,49 @@ def _trials_worker(plan: list, network: str, vision: str, seconds: float, seed: 
     out = []
     for k, item in enumerate(plan):
         row_index = performance.ROWS.index(item["row"])
-        agent = _agent(item["policy"], WORD_OF_ROW[item["row"]], env, model, vision, calibration,
-                       rng=[seed, row_index, item["index"]])
-        result = performance.run_trial(env, agent, item["row"], tuple(item["start"]), item["wall"],
-                                       config=config)
+        agent = _agent(
+            item["policy"],
+            WORD_OF_ROW[item["row"]],
+            env,
+            model,
+            vision,
+            calibration,
+            rng=[seed, row_index, item["index"]],
+        )
+        result = performance.run_trial(
+            env, agent, item["row"], tuple(item["start"]), item["wall"], config=config
+        )
         est = result.estimate
         valid = np.all(np.isfinite(est), axis=1)
         own_error = np.hypot(*(est[valid, :2] - result.trace[valid, :2]).T)
-        out.append({**item, "success": bool(result.success), "seconds": result.seconds,
-                    "touched": bool(result.touched),
-                    "end_pose": [float(v) for v in result.trace[-1]],
-                    "own_pose_error_cm_median": float(np.median(own_error) * 100)
-                    if own_error.size else None})
+        out.append(
+            {
+                **item,
+                "success": bool(result.success),
+                "seconds": result.seconds,
+                "touched": bool(result.touched),
+                "end_pose": [float(v) for v in result.trace[-1]],
+                "own_pose_error_cm_median": float(np.median(own_error) * 100)
+                if own_error.size
+                else None,
+            }
+        )
         pathlib.Path(progress_file).write_text(str(k + 1))
     env.close()
     return out
 
 
-def _run_parallel(fn, chunks: list, args: tuple, workers: int, folder: pathlib.Path,
-                  desc: str, total: int):
+def _run_parallel(
+    fn, chunks: list, args: tuple, workers: int, folder: pathlib.Path, desc: str, total: int
+):
     from peoplebot_sim.reproduce import _poll
 
     progress = [folder / f".{desc.replace(' ', '_')}.{i}.progress" for i in range(len(chunks))]
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        futures = [pool.submit(fn, chunk, *args, str(p)) for chunk, p in zip(chunks, progress)]
+        futures = [
+            pool.submit(fn, chunk, *args, str(p)) for chunk, p in zip(chunks, progress, strict=True)
+        ]
         results = _poll(futures, progress, total, desc)
     for p in progress:
         p.unlink(missing_ok=True)
@@ -98,9 +118,15 @@ def stage_performance(config, folder: pathlib.Path) -> dict:
     plan = trial_plan(config.trials, config.seed)
     workers = max(1, min(config.workers, len(plan)))
     chunks = [plan[i::workers] for i in range(workers)]
-    results = _run_parallel(_trials_worker, chunks,
-                            (str(folder / "network.npz"), config.vision, config.trial_seconds,
-                             config.seed), workers, folder, "performance trials", len(plan))
+    results = _run_parallel(
+        _trials_worker,
+        chunks,
+        (str(folder / "network.npz"), config.vision, config.trial_seconds, config.seed),
+        workers,
+        folder,
+        "performance trials",
+        len(plan),
+    )
     trials = [t for chunk in results for t in chunk]
     (folder / "performance_trials.json").write_text(__import__("json").dumps(trials, indent=1))
     rates = {}
@@ -112,11 +138,16 @@ def stage_performance(config, folder: pathlib.Path) -> dict:
                 rates[row][policy] = None
                 continue
             successes = sum(t["success"] for t in mine)
-            errors = [t["own_pose_error_cm_median"] for t in mine
-                      if t["own_pose_error_cm_median"] is not None]
+            errors = [
+                t["own_pose_error_cm_median"]
+                for t in mine
+                if t["own_pose_error_cm_median"] is not None
+            ]
             rates[row][policy] = {
-                "success_rate": successes / len(mine), "successes": successes,
-                "trials": len(mine), "touched": sum(t["touched"] for t in mine),
+                "success_rate": successes / len(mine),
+                "successes": successes,
+                "trials": len(mine),
+                "touched": sum(t["touched"] for t in mine),
                 "mean_seconds": float(np.mean([t["seconds"] for t in mine])),
                 "own_pose_error_cm_median": float(np.median(errors)) if errors else None,
             }
@@ -134,12 +165,16 @@ def fig4_traces(config, folder: pathlib.Path) -> dict:
     traces, out = {}, {}
     for word in ("go", "pick", "lift"):
         agent = _agent("student", word, env, model, config.vision, calibration)
-        result = performance.run_trial(env, agent, word, performance.FIG4_START, "top",
-                                       config=success, stop_on_success=False)
+        result = performance.run_trial(
+            env, agent, word, performance.FIG4_START, "top", config=success, stop_on_success=False
+        )
         traces[word] = result.trace
         traces[f"{word}_directives"] = np.asarray([d or "" for d in result.directives])
-        out[word] = {"end_pose": [float(v) for v in result.trace[-1]], "touched": result.touched,
-                     "seconds": result.seconds}
+        out[word] = {
+            "end_pose": [float(v) for v in result.trace[-1]],
+            "touched": result.touched,
+            "seconds": result.seconds,
+        }
     env.close()
     np.savez(folder / "fig4_traces.npz", **traces)
     return out
@@ -148,8 +183,9 @@ def fig4_traces(config, folder: pathlib.Path) -> dict:
 class _VideoWriter:
     """Writes one annotated showcase frame per control step of a trial."""
 
-    def __init__(self, env, path, word: str, width: int, height: int, progress_file: str,
-                 frames_before: int):
+    def __init__(
+        self, env, path, word: str, width: int, height: int, progress_file: str, frames_before: int
+    ):
         import imageio.v2 as imageio
 
         from peoplebot_sim.rendering import FrameRenderer
@@ -157,8 +193,14 @@ class _VideoWriter:
         self.word, self.progress_file, self.frames = word, progress_file, frames_before
         self.steps = 0
         self.renderer = FrameRenderer(env.physics, width, height, antialias=True)
-        self.writer = imageio.get_writer(str(path), fps=20, codec="libx264", quality=7,
-                                         macro_block_size=8, ffmpeg_log_level="error")
+        self.writer = imageio.get_writer(
+            str(path),
+            fps=20,
+            codec="libx264",
+            quality=7,
+            macro_block_size=8,
+            ffmpeg_log_level="error",
+        )
 
     def __call__(self, env, agent) -> None:
         from peoplebot_sim.overlay import annotate
@@ -176,8 +218,17 @@ class _VideoWriter:
         self.renderer.close()
 
 
-def _video_worker(words: list, network: str, vision: str, seconds: float, seed: int,
-                  width: int, height: int, folder: str, progress_file: str) -> list[str]:
+def _video_worker(
+    words: list,
+    network: str,
+    vision: str,
+    seconds: float,
+    seed: int,
+    width: int,
+    height: int,
+    folder: str,
+    progress_file: str,
+) -> list[str]:
     import peoplebot_sim  # noqa: F401
 
     model = persistence.load(network)
@@ -189,9 +240,16 @@ def _video_worker(words: list, network: str, vision: str, seconds: float, seed: 
         path = pathlib.Path(folder) / f"student_{word}.mp4"
         video = _VideoWriter(env, path, word, width, height, progress_file, frames)
         try:
-            performance.run_trial(env, agent, word, performance.FIG4_START, "top",
-                                  config=performance.SuccessConfig(seconds=seconds),
-                                  stop_on_success=False, frame_callback=video)
+            performance.run_trial(
+                env,
+                agent,
+                word,
+                performance.FIG4_START,
+                "top",
+                config=performance.SuccessConfig(seconds=seconds),
+                stop_on_success=False,
+                frame_callback=video,
+            )
         finally:
             video.close()
         frames = video.frames
@@ -206,8 +264,21 @@ def stage_videos(config, folder: pathlib.Path) -> dict:
     workers = max(1, min(config.workers, len(words)))
     chunks = [words[i::workers] for i in range(workers)]
     frames = int(round(config.trial_seconds / 0.1)) * len(words)
-    results = _run_parallel(_video_worker, chunks,
-                            (str(folder / "network.npz"), config.vision, config.trial_seconds,
-                             config.seed, config.video_width, config.video_height, str(folder)),
-                            workers, folder, "videos", frames)
+    results = _run_parallel(
+        _video_worker,
+        chunks,
+        (
+            str(folder / "network.npz"),
+            config.vision,
+            config.trial_seconds,
+            config.seed,
+            config.video_width,
+            config.video_height,
+            str(folder),
+        ),
+        workers,
+        folder,
+        "videos",
+        frames,
+    )
     return {"videos": sorted(p for chunk in results for p in chunk)}

@@ -75,7 +75,7 @@ class DetectorConfig:
 
     def __post_init__(self):
         windows = tuple(self.threshold_windows_px)
-        steps = {b - a for a, b in zip(windows, windows[1:])}
+        steps = {b - a for a, b in zip(windows, windows[1:], strict=False)}
         if (
             not windows
             or any(not isinstance(w, int) or w < 3 or w % 2 == 0 for w in windows)
@@ -299,7 +299,7 @@ class MarkerDetector:
         starts = []
         cursor = gap
         for x0, y0, x1, y1 in crops:
-            mosaic[gap:gap + y1 - y0, cursor:cursor + x1 - x0] = gray[y0:y1, x0:x1]
+            mosaic[gap : gap + y1 - y0, cursor : cursor + x1 - x0] = gray[y0:y1, x0:x1]
             starts.append(cursor)
             cursor += x1 - x0 + gap
         found = []

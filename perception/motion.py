@@ -176,7 +176,7 @@ def infer_directives_batch(
     before, after = poses[:-1], poses[1:]
     dyaw = wrap_radians(after[:, 2] - before[:, 2])
     mid = before[:, 2] + 0.5 * dyaw
-    v = ((after[:, 0] - before[:, 0]) * np.cos(mid) + (after[:, 1] - before[:, 1]) * np.sin(mid))
+    v = (after[:, 0] - before[:, 0]) * np.cos(mid) + (after[:, 1] - before[:, 1]) * np.sin(mid)
     v = v / dt_s
     w = dyaw / dt_s
     translation = np.abs(v) / config.forward_speed_mps

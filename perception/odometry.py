@@ -36,11 +36,18 @@ class WheelOdometry:
       geometry: the robot's drive geometry.
     """
 
-    def __init__(self, start_pose, left_angle: float, right_angle: float,
-                 geometry: DriveGeometry = DriveGeometry()):
+    def __init__(
+        self,
+        start_pose,
+        left_angle: float,
+        right_angle: float,
+        geometry: DriveGeometry = DriveGeometry(),
+    ):
         pose = np.asarray(start_pose, dtype=float)
         if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-            raise ValueError(f"start_pose must be 3 finite numbers (x_m, y_m, yaw_rad), got {start_pose!r}")
+            raise ValueError(
+                f"start_pose must be 3 finite numbers (x_m, y_m, yaw_rad), got {start_pose!r}"
+            )
         self.geometry = geometry
         self.pose = pose.copy()
         self._last = (float(left_angle), float(right_angle))

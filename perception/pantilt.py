@@ -166,8 +166,10 @@ class PanTiltController:
             raise ValueError(
                 f"search_pan_deg must be in [0, {limits.pan_max_deg}], got {search_pan_deg!r}"
             )
-        if not (np.isfinite(search_tilt_deg)
-                and limits.tilt_min_deg <= search_tilt_deg <= limits.tilt_max_deg):
+        if not (
+            np.isfinite(search_tilt_deg)
+            and limits.tilt_min_deg <= search_tilt_deg <= limits.tilt_max_deg
+        ):
             raise ValueError(
                 f"search_tilt_deg must be within the tilt limits, got {search_tilt_deg!r}"
             )

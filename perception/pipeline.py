@@ -14,11 +14,11 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Iterable
 
+import numpy as np
+
 from perception.camera import PinholeCamera
 from perception.layout import ROBOT_NAMES, MarkerPlacement, default_layout
 from perception.markers import DetectorConfig, MarkerDetection, MarkerDetector
-import numpy as np
-
 from perception.pose import (
     RobotPoseEstimate,
     estimate_robot_poses,
@@ -152,13 +152,19 @@ class Tracker:
             rotation, position = robot_to_world(*pose)
             corners, normals, centres = self._robot_geometry[robot]
             # Only plates that face the camera can be seen.
-            facing = np.einsum(
-                "ij,ij->i", centres @ rotation.T + position - camera.position_world,
-                normals @ rotation.T) < 0
+            facing = (
+                np.einsum(
+                    "ij,ij->i",
+                    centres @ rotation.T + position - camera.position_world,
+                    normals @ rotation.T,
+                )
+                < 0
+            )
             if not np.any(facing):
                 continue
-            pixels = camera.project(
-                corners[np.repeat(facing, 4)] @ rotation.T + position).reshape(-1, 4, 2)
+            pixels = camera.project(corners[np.repeat(facing, 4)] @ rotation.T + position).reshape(
+                -1, 4, 2
+            )
             for quad in pixels:
                 if not np.all(np.isfinite(quad)):
                     continue
@@ -185,8 +191,14 @@ class Tracker:
                 return None
             try:
                 poses[robot] = fit_robot_pose(
-                    sorted(mine.items()), camera, robot, self.tracks[robot].predict_pose(time_s),
-                    layout=self.layout, arena=self.arena, iterations=3)
+                    sorted(mine.items()),
+                    camera,
+                    robot,
+                    self.tracks[robot].predict_pose(time_s),
+                    layout=self.layout,
+                    arena=self.arena,
+                    iterations=3,
+                )
             except ValueError:
                 return None
             # A fit far from every corner (a false or swapped detection) falls back to a full search.

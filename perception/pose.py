@@ -228,8 +228,13 @@ def estimate_robot_pose(
     largest = max(mine, key=lambda d: d.area_px())
     initial = _initial_guess(largest, by_id[largest.marker_id], camera)
     return fit_robot_pose(
-        [(d.marker_id, d.corners_px) for d in mine], camera, robot, initial,
-        layout=layout, arena=arena, pixel_noise_px=pixel_noise_px,
+        [(d.marker_id, d.corners_px) for d in mine],
+        camera,
+        robot,
+        initial,
+        layout=layout,
+        arena=arena,
+        pixel_noise_px=pixel_noise_px,
     )
 
 
@@ -248,7 +253,10 @@ def planar_pose_from_horizontal_corners(
       camera: the camera with its extrinsics.
     """
     normalised = _normalised_observations(np.asarray(observed_px, dtype=float), camera)
-    rays = np.column_stack([normalised, np.ones(len(normalised))]) @ camera.rotation_world_from_camera.T
+    rays = (
+        np.column_stack([normalised, np.ones(len(normalised))])
+        @ camera.rotation_world_from_camera.T
+    )
     origin = camera.position_world
     with np.errstate(divide="ignore", invalid="ignore"):
         depth = (corners_robot[:, 2] - origin[2]) / rays[:, 2]

@@ -51,7 +51,9 @@ class ArenaGeometry:
 
     def __post_init__(self):
         if not np.isfinite(self.side_m) or self.side_m <= 0:
-            raise ValueError(f"side_m must be a positive finite number of metres, got {self.side_m!r}")
+            raise ValueError(
+                f"side_m must be a positive finite number of metres, got {self.side_m!r}"
+            )
 
     @property
     def half_side_m(self) -> float:
@@ -90,7 +92,10 @@ def nearest_wall(x_world: float, y_world: float) -> str:
 
 
 def world_to_wall(
-    x_world: float, y_world: float, yaw_rad: float, arena: ArenaGeometry = ArenaGeometry(),
+    x_world: float,
+    y_world: float,
+    yaw_rad: float,
+    arena: ArenaGeometry = ArenaGeometry(),
     wall: str | None = None,
 ) -> WallPose:
     """Returns the wall-frame pose of a planar world pose.

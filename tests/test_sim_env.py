@@ -19,8 +19,8 @@ from dm_env import test_utils
 from peoplebot_sim import cameras, directives, task
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.streams import StreamGenerator
-from perception.markers import DetectorConfig
 from perception import layout
+from perception.markers import DetectorConfig
 from perception.pantilt import head_camera
 from perception.pipeline import Tracker
 from perception.wallframe import ArenaGeometry, world_to_wall, world_to_wall_batch, wrap_degrees
