@@ -7,3 +7,13 @@ the user has chosen a backend, ``MUJOCO_GL`` is set to ``egl`` before mujoco is 
 import os
 
 os.environ.setdefault("MUJOCO_GL", "egl")
+
+
+def load(config=None, seed=None, **overrides):
+    """Returns the imitation environment (a ``dm_env.Environment``); see ``peoplebot_sim.task.load``.
+
+    Imported lazily so that ``import peoplebot_sim`` stays cheap and sets ``MUJOCO_GL`` first.
+    """
+    from peoplebot_sim.task import load as _load
+
+    return _load(config, seed, **overrides)
