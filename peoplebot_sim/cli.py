@@ -90,7 +90,7 @@ def _cmd_reproduce(args) -> int:
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
         f"{config.vision}-{config.motor_source}-seed{config.seed}"
     )
-    results = run(config, out, fresh=args.fresh)
+    results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
     print(f"run folder: {out} (results.json, results.md, figures/, videos)")
     return 0 if results else 1
@@ -177,6 +177,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=pathlib.Path, default=None, help="run folder (resumed if present)"
     )
     rep.add_argument("--fresh", action="store_true", help="start the run folder over")
+    rep.add_argument(
+        "--reuse-from",
+        type=pathlib.Path,
+        default=None,
+        help="take the streams and trained network of this finished run folder (same seed, motor "
+        "source, steps and network): compare vision modes on one network",
+    )
     rep.set_defaults(func=_cmd_reproduce)
 
     fig = sub.add_parser("figures", help="the paper's Figs. 3, 5 and 6 from a saved network")

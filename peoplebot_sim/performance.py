@@ -8,7 +8,7 @@ word on the same robot from the same starts, is the reference.
 Success, per trial (all in ``SuccessConfig``):
 
 - ``go``: from a random free pose anywhere, for 60 s: never touches a wall or the table, visits at
-  least two wall areas, and keeps moving (at least 0.2 m in every 10 s window).
+  least two wall areas, and keeps moving (drives a path of at least 0.2 m in every 10 s window).
 - ``pick`` (table wall): from a random pose in the table's wall area, 1.0-1.6 m from the wall, at most
   0.8 m either side of its middle, facing it within 45 deg: within 60 s reaches the teacher's
   docked pose within 15 cm and 20 deg, without touching anything.
@@ -254,7 +254,10 @@ class SuccessMonitor:
         p = np.asarray(self.positions)
         if len(p) <= window:
             return False
-        travel = np.hypot(*(p[window:] - p[:-window]).T)
+        # Path length driven in every window (driving back and forth counts, turning on the spot
+        # does not).
+        path = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))])
+        travel = path[window:] - path[:-window]
         return len(self.areas) >= c.go_min_wall_areas and bool(
             np.all(travel >= c.go_min_window_travel_m)
         )

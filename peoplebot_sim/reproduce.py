@@ -23,6 +23,7 @@ import math
 import multiprocessing
 import pathlib
 import platform
+import shutil
 import time
 
 import numpy as np
@@ -222,12 +223,52 @@ def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, enco
     return out
 
 
-def run(config: ReproduceConfig, out_dir, fresh: bool = False) -> dict:
-    """Runs (or resumes) the whole experiment in ``out_dir``; returns the results."""
+#: Settings that decide the streams and the network: runs agreeing on them can share both.
+SHARED_LEARNING_SETTINGS = ("seed", "motor_source", "train_steps", "test_steps", "network")
+
+
+def reuse_learning(state: RunState, source) -> None:
+    """Copies the streams and the trained network of the finished run in ``source`` into this run,
+    if both runs agree on ``SHARED_LEARNING_SETTINGS`` (so vision modes can be compared on one
+    network); raises ValueError otherwise."""
+    source = pathlib.Path(source)
+    try:
+        other = json.loads((source / "state.json").read_text())
+    except (FileNotFoundError, json.JSONDecodeError) as error:
+        raise ValueError(f"{source} is not a run folder ({error})") from None
+    differing = [
+        k for k in SHARED_LEARNING_SETTINGS if other["config"].get(k) != state.data["config"].get(k)
+    ]
+    if differing:
+        raise ValueError(f"{source} was run with other {', '.join(differing)}; it cannot be reused")
+    for stage in ("streams", "learning"):
+        if stage not in other["stages"]:
+            raise ValueError(f"{source} has not finished its {stage} stage")
+    if state.done("learning"):
+        return
+    (state.folder / "streams").mkdir(exist_ok=True)
+    for name in ("train", "test"):
+        shutil.copyfile(
+            source / "streams" / f"{name}.npz", state.folder / "streams" / f"{name}.npz"
+        )
+    shutil.copyfile(source / "network.npz", state.folder / "network.npz")
+    for stage in ("streams", "learning"):
+        state.finish(stage, {**other["stages"][stage], "reused_from": str(source)})
+        state.data.setdefault("seconds", {})[stage] = 0.0
+
+
+def run(config: ReproduceConfig, out_dir, fresh: bool = False, reuse_from=None) -> dict:
+    """Runs (or resumes) the whole experiment in ``out_dir``; returns the results.
+
+    ``reuse_from``: a finished run folder whose streams and network to take (see
+    ``reuse_learning``).
+    """
     from peoplebot_sim import trials as trial_runner  # imports mujoco; after MUJOCO_GL is set
 
     folder = pathlib.Path(out_dir)
     state = RunState(folder, config.as_dict(), fresh=fresh)
+    if reuse_from is not None:
+        reuse_learning(state, reuse_from)
     encoder = encoding.VisionEncoder()
     timings = state.data.setdefault("seconds", {})
     for stage in STAGES:

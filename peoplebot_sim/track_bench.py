@@ -218,3 +218,64 @@ def _stats(values: np.ndarray) -> dict:
     if values.size == 0:
         return {"median": None, "p95": None}
     return {"median": float(np.median(values)), "p95": float(np.percentile(values, 95))}
+
+
+def sequence_timing(
+    width: int = 320,
+    height: int = 240,
+    seed: int = 0,
+    n_steps: int = 300,
+    detector_config: DetectorConfig | None = None,
+) -> dict:
+    """Times tracking over time as the experiments use it: the environment's overhead camera
+    observable renders each control step while the teacher loops, and ``Tracker.update`` follows both
+    robots (searching around their predicted markers). Returns steps/s without the camera, with it,
+    and with tracking, the render and tracking times per frame, tracking's share of the render time,
+    and the tracked pose errors."""
+    from peoplebot_sim.task import load
+
+    def run_loop(cameras, track):
+        env = load(seed=seed, cameras=cameras, width=width, height=height)
+        timestep = env.reset()
+        calibration = None
+        if cameras:
+            calibration = _overhead_calibration(env, width, height)
+        tracker = Tracker(detector_config=detector_config or DetectorConfig()) if track else None
+        action = np.zeros(env.action_spec().shape)
+        errors = []
+        start = time.perf_counter()
+        for i in range(n_steps):
+            timestep = env.step(action)
+            if tracker is not None:
+                tracked = tracker.update(
+                    timestep.observation["overhead_camera"], calibration, i * 0.1
+                )
+                pose = tracked["teacher"].track.pose
+                if pose is not None:
+                    truth = timestep.observation["teacher_pose"]
+                    errors.append(100 * math.hypot(pose[0] - truth[0], pose[1] - truth[1]))
+        seconds = time.perf_counter() - start
+        env.close()
+        return seconds, errors, tracker
+
+    physics_s, _, _ = run_loop((), False)
+    render_s, _, _ = run_loop(("overhead",), False)
+    track_s, errors, tracker = run_loop(("overhead",), True)
+    render_per_frame = (render_s - physics_s) / n_steps
+    track_per_frame = (track_s - render_s) / n_steps
+    return {
+        "steps": n_steps,
+        "steps_per_s_without_camera": n_steps / physics_s,
+        "steps_per_s_with_camera": n_steps / render_s,
+        "steps_per_s_with_camera_and_tracking": n_steps / track_s,
+        "render_ms_per_frame": 1000 * render_per_frame,
+        "tracking_ms_per_frame": 1000 * track_per_frame,
+        "tracking_share_of_render_time": track_per_frame / render_per_frame,
+        "region_searches": tracker.region_searches,
+        "full_frame_searches": tracker.full_frame_searches,
+        "tracked_teacher_position_error_cm": _stats(np.asarray(errors)),
+    }
+
+
+def _overhead_calibration(env, width, height):
+    return cameras.camera_model(env.physics, "overhead", width, height)
