@@ -81,6 +81,7 @@ def _cmd_reproduce(args) -> int:
             "trials",
             "trial_seconds",
             "workers",
+            "drive",
         )
         if getattr(args, k) is not None
     }
@@ -172,6 +173,13 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument("--trials", type=_positive_int, default=None, help="random starts per word")
     rep.add_argument("--trial-seconds", type=_positive_float, default=None)
     rep.add_argument("--workers", type=_positive_int, default=None)
+    rep.add_argument(
+        "--drive",
+        choices=("graded", "directive"),
+        default=None,
+        help="the student's wheels follow its graded motor activations (default) or the "
+        "strongest directive",
+    )
     rep.add_argument("--no-videos", action="store_true")
     rep.add_argument(
         "--out", type=pathlib.Path, default=None, help="run folder (resumed if present)"

@@ -56,7 +56,11 @@ class ReproduceConfig:
       videos: render the performance videos.
       video_width, video_height: their size.
       workers: parallel processes for streams and trials.
-      network: Associator hyper-parameters (paper defaults when empty).
+      network: Associator hyper-parameters, as (name, value) pairs; the paper's values otherwise.
+        The envelope width the paper leaves open is 1.5 grid units here (README, fidelity notes).
+      drive: how the student's motor area drives its wheels while performing: 'graded' (the
+        reconstructed activations set the wheel speeds) or 'directive' (the strongest unit's
+        directive at its fixed speeds).
     """
 
     seed: int = 0
@@ -71,11 +75,14 @@ class ReproduceConfig:
     video_width: int = 480
     video_height: int = 360
     workers: int = 2
-    network: tuple = ()
+    network: tuple = (("envelope_sigma", 1.5),)
+    drive: str = "graded"
 
     def __post_init__(self):
         check_vision_mode(self.vision)
         learning.check_motor_source(self.motor_source)
+        if self.drive not in ("graded", "directive"):
+            raise ValueError(f"unknown drive {self.drive!r}; allowed: graded, directive")
         for name in ("train_steps", "test_steps", "vision_test_steps", "trials", "workers"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
@@ -99,7 +106,7 @@ class ReproduceConfig:
         return cls(**values)
 
     def network_params(self) -> dict:
-        params = dict(self.network)
+        params = {k: tuple(v) if isinstance(v, list) else v for k, v in dict(self.network).items()}
         params.setdefault("n_steps_total", self.train_steps)
         params.setdefault("rng", self.seed)
         return params

@@ -49,6 +49,7 @@ class TeacherConfig:
       lateral_tol_m, heading_tol_deg, dock_heading_tol_deg: docking tolerances.
       approach_lead_m, approach_heading_tol_deg: the final approach steers at a point this far
         beyond the docked pose on its centre line, within this heading tolerance.
+      settle_pattern: the docked robot's final alignment, small turns in place that cancel out.
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
       stuck_seconds, stuck_distance_m: the watchdog fires when a robot commanded to drive moves less
@@ -68,6 +69,7 @@ class TeacherConfig:
     predock_gap_m: float = 0.45
     lateral_tol_m: float = 0.03
     approach_lead_m: float = 0.5
+    settle_pattern: tuple = ("turn_left", "turn_right", "turn_right", "turn_left") * 2
     approach_heading_tol_deg: float = 4.0
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
@@ -113,6 +115,7 @@ class Teacher:
     def reset(self, rng=None) -> None:
         """Starts a fresh 'go' behaviour."""
         self._rng = np.random.default_rng(rng)
+        self._settle_steps = 0
         self.loop = True
         self.finished = False
         self.word = "go"
@@ -133,6 +136,7 @@ class Teacher:
         "phase",
         "loop",
         "finished",
+        "_settle_steps",
         "_behaviour_start_s",
         "_progress_anchor",
         "_turn_sign",
@@ -328,9 +332,20 @@ class Teacher:
                     return self._turn_towards(error)
                 return "forward"
             self.phase = "square"
-        # 'square': stand square to the table, then the pick is done.
-        if abs(heading_error) > c.dock_heading_tol_deg:
-            return self._turn_towards(heading_error)
+        # 'square': stand square to the table.
+        if self.phase == "approach" or self.phase == "square":
+            if abs(heading_error) > c.dock_heading_tol_deg:
+                self.phase = "square"
+                return self._turn_towards(heading_error)
+            self.phase = "settle"
+            self._settle_steps = 0
+        # 'settle': the docking's final alignment, small alternating turns in place (the paper's
+        # student, told 'pick', "approaches the middle of the top wall and then alternates between
+        # left and right turns"); then the pick is done.
+        if self._settle_steps < len(c.settle_pattern):
+            directive = c.settle_pattern[self._settle_steps]
+            self._settle_steps += 1
+            return directive
         self._enter("lift", "back")
         if self.finished:
             return self.directive

@@ -42,18 +42,28 @@ def _environment(vision: str, seed: int, width: int = 320, height: int = 240):
     return env
 
 
-def _agent(policy: str, word: str, env, model, vision: str, calibration, rng=None):
+def _agent(
+    policy: str, word: str, env, model, vision: str, calibration, rng=None, graded: bool = True
+):
     spec = env.action_spec()
     if policy == "teacher":
         if rng is None:
             raise ValueError("a teacher reference agent needs its trial's rng seed")
         return performance.TeacherAgent(word, spec, rng=rng)
     student_vision = StudentVision(vision, calibration, watch_teacher=False)
-    return performance.StudentAgent(model, word, student_vision, encoding.VisionEncoder(), spec)
+    return performance.StudentAgent(
+        model, word, student_vision, encoding.VisionEncoder(), spec, graded=graded
+    )
 
 
 def _trials_worker(
-    plan: list, network: str, vision: str, seconds: float, seed: int, progress_file: str
+    plan: list,
+    network: str,
+    vision: str,
+    seconds: float,
+    seed: int,
+    graded: bool,
+    progress_file: str,
 ) -> list[dict]:
     import peoplebot_sim  # noqa: F401
 
@@ -72,6 +82,7 @@ def _trials_worker(
             vision,
             calibration,
             rng=[seed, row_index, item["index"]],
+            graded=graded,
         )
         result = performance.run_trial(
             env, agent, item["row"], tuple(item["start"]), item["wall"], config=config
@@ -121,7 +132,13 @@ def stage_performance(config, folder: pathlib.Path) -> dict:
     results = _run_parallel(
         _trials_worker,
         chunks,
-        (str(folder / "network.npz"), config.vision, config.trial_seconds, config.seed),
+        (
+            str(folder / "network.npz"),
+            config.vision,
+            config.trial_seconds,
+            config.seed,
+            config.drive == "graded",
+        ),
         workers,
         folder,
         "performance trials",
@@ -164,7 +181,15 @@ def fig4_traces(config, folder: pathlib.Path) -> dict:
     success = performance.SuccessConfig(seconds=config.trial_seconds)
     traces, out = {}, {}
     for word in ("go", "pick", "lift"):
-        agent = _agent("student", word, env, model, config.vision, calibration)
+        agent = _agent(
+            "student",
+            word,
+            env,
+            model,
+            config.vision,
+            calibration,
+            graded=config.drive == "graded",
+        )
         result = performance.run_trial(
             env, agent, word, performance.FIG4_START, "top", config=success, stop_on_success=False
         )
@@ -227,6 +252,7 @@ def _video_worker(
     width: int,
     height: int,
     folder: str,
+    graded: bool,
     progress_file: str,
 ) -> list[str]:
     import peoplebot_sim  # noqa: F401
@@ -236,7 +262,7 @@ def _video_worker(
     calibration = Calibration(env.physics, 320, 240) if vision != "truth" else None
     paths, frames = [], 0
     for word in words:
-        agent = _agent("student", word, env, model, vision, calibration)
+        agent = _agent("student", word, env, model, vision, calibration, graded=graded)
         path = pathlib.Path(folder) / f"student_{word}.mp4"
         video = _VideoWriter(env, path, word, width, height, progress_file, frames)
         try:
@@ -275,6 +301,7 @@ def stage_videos(config, folder: pathlib.Path) -> dict:
             config.video_width,
             config.video_height,
             str(folder),
+            config.drive == "graded",
         ),
         workers,
         folder,
