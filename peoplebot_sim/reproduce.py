@@ -56,8 +56,8 @@ class ReproduceConfig:
       videos: render the performance videos.
       video_width, video_height: their size.
       workers: parallel processes for streams and trials.
-      network: Associator hyper-parameters, as (name, value) pairs; the paper's values otherwise.
-        The envelope width the paper leaves open is 1.5 grid units here (README, fidelity notes).
+      network: Associator hyper-parameters, as (name, value) pairs; the defaults otherwise (the
+        paper's values, and our documented choices where the paper is silent).
       drive: how the student's motor area drives its wheels while performing: 'graded' (the
         reconstructed activations set the wheel speeds) or 'directive' (the strongest unit's
         directive at its fixed speeds).
@@ -75,7 +75,7 @@ class ReproduceConfig:
     video_width: int = 480
     video_height: int = 360
     workers: int = 2
-    network: tuple = (("envelope_sigma", 1.5),)
+    network: tuple = ()
     drive: str = "graded"
 
     def __post_init__(self):
