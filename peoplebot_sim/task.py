@@ -142,20 +142,15 @@ class ImitationTask(composer.Task):
     def _make_observables(self):
         c = self.config
         no_shadow = {"shadow": False}
-        named_qpos = lambda p, name: float(p.named.data.qpos[name][0])  # noqa: E731
         obs = {
             "student_pose": observable.Generic(self._student.planar_pose),
             "student_wall_pose": observable.Generic(lambda p: self._wall_pose(self._student, p)),
             # Proprioception, as on the real robot: wheel encoders and head joint angles (rad).
             "student_wheel_angles": observable.Generic(
-                lambda p: np.array(
-                    [named_qpos(p, "student/left_wheel"), named_qpos(p, "student/right_wheel")]
-                )
+                lambda p: p.data.qpos[self._qpos_addresses(p)[:2]].copy()
             ),
             "student_head_angles": observable.Generic(
-                lambda p: np.array(
-                    [named_qpos(p, "student/head_pan"), named_qpos(p, "student/head_tilt")]
-                )
+                lambda p: p.data.qpos[self._qpos_addresses(p)[2:]].copy()
             ),
         }
         if self._teacher is not None:
@@ -187,6 +182,18 @@ class ImitationTask(composer.Task):
             camera = name.removesuffix("_camera")
             ob.enabled = camera in c.cameras if name.endswith("_camera") else True
         return obs
+
+    def _qpos_addresses(self, physics) -> np.ndarray:
+        """Returns the qpos addresses of the student's left and right wheels, head pan and tilt."""
+        key = id(physics.model.ptr)
+        if getattr(self, "_qpos_key", None) != key:
+            model = physics.model
+            names = ("left_wheel", "right_wheel", "head_pan", "head_tilt")
+            self._qpos_adr = np.array(
+                [model.jnt_qposadr[model.name2id(f"student/{n}", "joint")] for n in names]
+            )
+            self._qpos_key = key
+        return self._qpos_adr
 
     def _wall_pose(self, robot, physics) -> np.ndarray:
         x, y, yaw = robot.planar_pose(physics)
@@ -326,36 +333,44 @@ class ImitationTask(composer.Task):
         return robot_touches_obstacle(physics, self._teacher, self)
 
 
-def robot_touches_obstacle(physics, robot, task) -> bool:
-    """Returns whether any geom of ``robot`` touches a wall, the table or another robot."""
+def _contact_masks(physics, task) -> dict:
+    """Returns, per robot role, boolean masks over geoms: the robot's own geoms, and the geoms it must
+    not touch (walls, the table, the other robot). Cached per compiled model."""
+    key = id(physics.model.ptr)
+    cached = getattr(task, "_contact_masks_cache", None)
+    if cached is not None and cached[0] == key:
+        return cached[1]
     model = physics.model
-    body_root = model.body_rootid
-    robot_root = physics.bind(robot.root_body).element_id
-    table_root = physics.bind(task._table.mjcf_model.find("body", "table")).element_id
-    contact = physics.data.contact
-    for i in range(physics.data.ncon):
-        b1 = model.geom_bodyid[contact.geom1[i]]
-        b2 = model.geom_bodyid[contact.geom2[i]]
-        r1, r2 = body_root[b1], body_root[b2]
-        if robot_root not in (r1, r2):
-            continue
-        other_body = b2 if r1 == robot_root else b1
-        other_root = r2 if r1 == robot_root else r1
-        name = (
-            model.id2name(contact.geom2[i] if r1 == robot_root else contact.geom1[i], "geom") or ""
-        )
-        if other_root == 0 and name.startswith("wall"):
-            return True
-        if other_root == table_root:
-            return True
-        if (
-            other_root != 0
-            and other_root != robot_root
-            and other_body != 0
-            and model.id2name(other_root, "body") in ("student/base", "teacher/base")
-        ):
-            return True
-    return False
+    geom_root = model.body_rootid[model.geom_bodyid]
+    names = [model.id2name(g, "geom") or "" for g in range(model.ngeom)]
+    walls = np.array(
+        [geom_root[g] == 0 and names[g].startswith("wall") for g in range(model.ngeom)]
+    )
+    table_body = task._table.mjcf_model.find("body", "table")
+    table = geom_root == model.body_rootid[physics.bind(table_body).element_id]
+    robots = [r for r in (task.student, task.teacher) if r is not None]
+    roots = {r.role: model.body_rootid[physics.bind(r.root_body).element_id] for r in robots}
+    masks = {}
+    for robot in robots:
+        own = geom_root == roots[robot.role]
+        others = np.zeros(model.ngeom, bool)
+        for role, root in roots.items():
+            if role != robot.role:
+                others |= geom_root == root
+        masks[robot.role] = (own, walls | table | others)
+    task._contact_masks_cache = (key, masks)
+    return masks
+
+
+def robot_touches_obstacle(physics, robot, task) -> bool:
+    """Returns whether any geom of ``robot`` touches a wall, the table or the other robot."""
+    own, obstacle = _contact_masks(physics, task)[robot.role]
+    n = physics.data.ncon
+    if n == 0:
+        return False
+    g1 = physics.data.contact.geom1[:n]
+    g2 = physics.data.contact.geom2[:n]
+    return bool(np.any((own[g1] & obstacle[g2]) | (own[g2] & obstacle[g1])))
 
 
 class Environment(composer.Environment):

@@ -400,3 +400,31 @@ def test_environment_episode_ends_at_the_time_limit():
     env.reset()
     types = [env.step(STILL).step_type for _ in range(5)]
     assert types == [dm_env.StepType.MID] * 4 + [dm_env.StepType.LAST]
+
+
+@pytest.mark.parametrize(
+    "student_pose, teacher_pose, what",
+    [
+        ((0.0, 0.9, math.pi / 2), (1.2, -1.2, 0.0), "table"),
+        ((0.0, -1.0, 0.0), (0.9, -1.0, 0.0), "teacher"),
+        ((0.0, 0.0, 0.0), (1.2, -1.2, 0.0), "right wall"),
+    ],
+)
+def test_contact_detector_sees_the_table_the_other_robot_and_walls(
+    student_pose, teacher_pose, what
+):
+    """Driving the student straight into an obstacle is reported as touching it, and not before."""
+    env = task.load(seed=0)
+    env.task.set_start(student_pose=student_pose, teacher_pose=teacher_pose)
+    env.reset()
+    assert not task.robot_touches_obstacle(env.physics, env.task.student, env.task)
+    action = np.zeros(6)
+    action[0] = 0.3
+    touched = False
+    for _ in range(80):
+        env.step(action)
+        touched = task.robot_touches_obstacle(env.physics, env.task.student, env.task)
+        if touched:
+            break
+    env.close()
+    assert touched, f"driving into the {what} was not detected"
