@@ -206,6 +206,9 @@ def run(
         "samples": n_samples,
         "seed": seed,
         "viewpoints": results,
+        "sequence": sequence_timing(
+            width, height, seed, n_steps=max(100, n_samples), detector_config=detector_config
+        ),
     }
     if out_path is not None:
         out_path = pathlib.Path(out_path)
