@@ -12,8 +12,8 @@ import dataclasses
 
 import numpy as np
 
-DIRECTIVES = ("forward", "backward", "turn_right", "turn_left")
-WORDS = ("go", "pick", "lift")
+# The vocabulary and the motor units (the paper's order) are the associator's.
+from associator.encoding import DIRECTIVES, WORDS, directive_index  # noqa: F401
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,16 +63,6 @@ class DriveSpeeds:
 
 # (sign of linear speed, sign of yaw rate) per directive, in DIRECTIVES order.
 _UNIT_COMMANDS = ((1.0, 0.0), (-1.0, 0.0), (0.0, -1.0), (0.0, 1.0))
-
-
-def directive_index(directive: str) -> int:
-    """Returns the index of a directive name in ``DIRECTIVES``."""
-    try:
-        return DIRECTIVES.index(directive)
-    except ValueError:
-        raise ValueError(
-            f"unknown directive {directive!r}; allowed: {', '.join(DIRECTIVES)}"
-        ) from None
 
 
 def word_index(word: str) -> int:

@@ -56,6 +56,16 @@ def _agent(
     )
 
 
+def _worker_setup(network: str, vision: str, seed: int):
+    """Returns a worker process's network, student-only environment and camera calibration."""
+    import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL in a freshly spawned process)
+
+    model = persistence.load(network)
+    env = _environment(vision, seed)
+    calibration = Calibration(env.physics, 320, 240) if vision != "truth" else None
+    return model, env, calibration
+
+
 def _trials_worker(
     plan: list,
     network: str,
@@ -65,11 +75,7 @@ def _trials_worker(
     graded: bool,
     progress_file: str,
 ) -> list[dict]:
-    import peoplebot_sim  # noqa: F401
-
-    model = persistence.load(network)
-    env = _environment(vision, seed)
-    calibration = Calibration(env.physics, 320, 240) if vision != "truth" else None
+    model, env, calibration = _worker_setup(network, vision, seed)
     config = performance.SuccessConfig(seconds=seconds)
     out = []
     for k, item in enumerate(plan):
@@ -255,11 +261,7 @@ def _video_worker(
     graded: bool,
     progress_file: str,
 ) -> list[str]:
-    import peoplebot_sim  # noqa: F401
-
-    model = persistence.load(network)
-    env = _environment(vision, seed)
-    calibration = Calibration(env.physics, 320, 240) if vision != "truth" else None
+    model, env, calibration = _worker_setup(network, vision, seed)
     paths, frames = [], 0
     for word in words:
         agent = _agent("student", word, env, model, vision, calibration, graded=graded)
