@@ -24,8 +24,6 @@ from perception.pantilt import PanTiltController, head_camera
 from perception.pipeline import Tracker
 
 VISION_MODES = ("truth", "overhead", "head")
-#: The camera observable each mode needs.
-CAMERA_OF_MODE = {"truth": None, "overhead": "overhead", "head": "head"}
 
 
 def check_vision_mode(mode: str) -> str:

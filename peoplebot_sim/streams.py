@@ -27,18 +27,6 @@ from perception.wallframe import world_to_wall
 _QPOS_SIZE = {0: 7, 1: 4, 2: 1, 3: 1}  # free, ball, slide, hinge
 _DOF_SIZE = {0: 6, 1: 3, 2: 1, 3: 1}
 
-STREAM_FIELDS = (
-    "x_world",
-    "y_world",
-    "yaw",
-    "x_wall",
-    "y_wall",
-    "phi_deg",
-    "word",
-    "directive",
-    "motor_changed",
-)
-
 
 @dataclasses.dataclass
 class TeacherStream:

@@ -25,8 +25,6 @@ ACTION_UNITS = ("m/s", "rad/s", "m", "m", "rad", "rad")
 CAMERA_NAMES = ("overhead", "head")
 #: Where the student watches from, world (x m, y m, yaw rad): the bottom-left corner, facing the centre.
 STUDENT_WATCH_POSE = (-1.45, -1.45, math.pi / 4)
-#: Where the paper's student starts performing (Fig. 4): top middle of the arena, facing up.
-STUDENT_PERFORM_POSE = (0.0, 0.6, math.pi / 2)
 
 
 @dataclasses.dataclass(frozen=True)

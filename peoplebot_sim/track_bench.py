@@ -12,7 +12,6 @@ estimate is compared with the simulator's pose. Two viewpoints:
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import pathlib
@@ -34,15 +33,6 @@ from perception.wallframe import wrap_degrees
 CATEGORIES = ("anywhere", "near_wall", "corner", "docked")
 
 
-@dataclasses.dataclass
-class PoseSample:
-    teacher: tuple
-    student: tuple
-    category: str
-    pan_deg: float = 0.0
-    tilt_deg: float = 0.0
-
-
 def _teacher_pose(task: ImitationTask, rng, category: str) -> tuple:
     h = task.geometry.half_side_m
     if category == "anywhere":
@@ -57,8 +47,6 @@ def _teacher_pose(task: ImitationTask, rng, category: str) -> tuple:
                 return x, y, rng.uniform(-math.pi, math.pi)
     if category == "corner":
         sx, sy = rng.choice([-1, 1], size=2)
-        if sy > 0 and sx > 0:
-            pass
         return (
             sx * (h - rng.uniform(0.45, 0.8)),
             sy * (h - rng.uniform(0.45, 0.8)),
@@ -80,7 +68,7 @@ def _overhead_student(task, rng, teacher) -> tuple:
     raise RuntimeError("no free student pose")
 
 
-def _head_student(task, rng, teacher, limits: PanTiltLimits) -> tuple | None:
+def _head_student(task, rng, teacher) -> tuple | None:
     h = task.geometry.half_side_m - 0.45
     for _ in range(200):
         distance = rng.uniform(1.0, 3.0)
@@ -92,10 +80,6 @@ def _head_student(task, rng, teacher, limits: PanTiltLimits) -> tuple | None:
         facing = math.atan2(teacher[1] - y, teacher[0] - x) + math.radians(rng.uniform(-40, 40))
         return x, y, facing
     return None
-
-
-def _set_pose(task, physics, robot, pose):
-    robot.set_planar_pose(physics, *pose)
 
 
 def run(
@@ -141,15 +125,15 @@ def run(
                     student = _overhead_student(task, rng, teacher)
                     pan = tilt = 0.0
                 else:
-                    student = _head_student(task, rng, teacher, limits)
+                    student = _head_student(task, rng, teacher)
                     if student is None:
                         continue
                     target = (teacher[0], teacher[1], marker_layout.SIDE_MARKER_HEIGHT_M)
                     pan, tilt = aim_at(student, target)
                     pan = float(np.clip(pan, limits.pan_min_deg, limits.pan_max_deg))
                     tilt = float(np.clip(tilt, limits.tilt_min_deg, limits.tilt_max_deg))
-                _set_pose(task, physics, task.teacher, teacher)
-                _set_pose(task, physics, task.student, student)
+                task.teacher.set_planar_pose(physics, *teacher)
+                task.student.set_planar_pose(physics, *student)
                 d.qpos[pan_qpos] = math.radians(pan)
                 d.qpos[tilt_qpos] = math.radians(tilt)
                 mujoco.mj_forward(m, d)
