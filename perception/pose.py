@@ -18,6 +18,7 @@ corners, and a covariance of ``(x, y, yaw)`` from the fit's Jacobian.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable
 
 import cv2
@@ -75,9 +76,12 @@ class RobotPoseEstimate:
         return np.array([self.x_m, self.y_m, self.yaw_rad])
 
 
-def _initial_guess(
+def initial_pose_from_marker(
     detection: MarkerDetection, placement: MarkerPlacement, camera: PinholeCamera
 ) -> np.ndarray:
+    """Returns a starting ``(x_m, y_m, yaw_rad)`` for the fit from one marker's own PnP pose: its
+    yaw and floor position only (the level constraint removes a tilted estimate's lever-arm
+    error)."""
     rotation_wm = camera.rotation_world_from_camera @ detection.rotation_camera_from_marker
     position_wm = camera.camera_to_world(detection.position_camera_m)[0]
     rotation_wr = rotation_wm @ placement.rotation.T
@@ -91,16 +95,19 @@ def _initial_guess(
 
 def _normalised_observations(observed_px: np.ndarray, camera: PinholeCamera) -> np.ndarray:
     """Returns the observed pixels as undistorted normalised image coordinates, shape (N, 2)."""
-    if camera.distortion.size and np.any(camera.distortion != 0):
+    if camera.distortion.size and camera.distortion.any():
         return cv2.undistortPoints(
             np.ascontiguousarray(observed_px, dtype=float).reshape(-1, 1, 2),
             camera.matrix,
             camera.distortion,
         ).reshape(-1, 2)
     k = camera.matrix
-    v = (observed_px[:, 1] - k[1, 2]) / k[1, 1]
-    u = (observed_px[:, 0] - k[0, 2] - k[0, 1] * v) / k[0, 0]
-    return np.column_stack([u, v])
+    out = np.subtract(observed_px, (k[0, 2], k[1, 2]))
+    out[:, 1] /= k[1, 1]
+    if k[0, 1]:
+        out[:, 0] -= k[0, 1] * out[:, 1]
+    out[:, 0] /= k[0, 0]
+    return out
 
 
 class _Projection:
@@ -108,8 +115,8 @@ class _Projection:
     and the focal lengths."""
 
     def __init__(self, camera: PinholeCamera):
-        self.r_cw = camera.rotation_camera_from_world
-        self.t_cw = camera.translation_camera_from_world
+        self.r_cw = camera.rotation_world_from_camera.T
+        self.t_cw = -self.r_cw @ camera.position_world
         self.focal = np.array([camera.matrix[0, 0], camera.matrix[1, 1]])
         self.d_planar = self.r_cw[:, :2]  # d p_camera / d (x, y)
 
@@ -122,14 +129,18 @@ def _residuals_and_jacobian(
 
     Residuals are taken in undistorted normalised coordinates and scaled by the focal lengths.
     """
-    x, y, yaw = params
-    c, s = np.cos(yaw), np.sin(yaw)
-    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    d_rotation = np.array([[-s, -c, 0.0], [c, -s, 0.0], [0.0, 0.0, 0.0]])
-    p = corners_robot @ (proj.r_cw @ rotation).T + (proj.r_cw @ (x, y, 0.0) + proj.t_cw)
-    dp_yaw = corners_robot @ (proj.r_cw @ d_rotation).T
+    x, y, yaw = (float(v) for v in params)
+    c, s = math.cos(yaw), math.sin(yaw)
+    # Rows of R_cw @ R(yaw) and of R_cw @ dR/dyaw, from R(yaw)'s two non-trivial columns.
+    r_cw = proj.r_cw
+    a, b = r_cw[:, 0], r_cw[:, 1]
+    rotated = np.column_stack([c * a + s * b, c * b - s * a, r_cw[:, 2]])
+    d_rotated = np.column_stack([c * b - s * a, -(c * a + s * b)])
+    p = corners_robot @ rotated.T + (x * a + y * b + proj.t_cw)
+    dp_yaw = corners_robot[:, :2] @ d_rotated.T
     z = p[:, 2:3]
-    z = np.where(z > 1e-9, z, np.nan)
+    if z.min() <= 1e-9:
+        z = np.where(z > 1e-9, z, np.nan)
     uv = p[:, :2] / z
     residuals = (uv - observed_n) * proj.focal
     jacobian = np.empty((len(p), 2, 3))
@@ -162,10 +173,17 @@ def fit_planar_pose(
       camera: the camera with its extrinsics.
       iterations: the most Levenberg-Marquardt steps.
     """
-    params = np.asarray(initial, dtype=float).copy()
-    corners_robot = np.asarray(corners_robot, dtype=float)
     observed_n = _normalised_observations(np.asarray(observed_px, dtype=float), camera)
-    proj = _Projection(camera)
+    return _fit_normalised(
+        initial, np.asarray(corners_robot, dtype=float), observed_n, _Projection(camera), iterations
+    )
+
+
+def _fit_normalised(
+    initial, corners_robot: np.ndarray, observed_n: np.ndarray, proj: _Projection, iterations: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`fit_planar_pose` from normalised image coordinates."""
+    params = np.asarray(initial, dtype=float).copy()
     r, jac = _residuals_and_jacobian(params, corners_robot, observed_n, proj)
     if not np.all(np.isfinite(r)):
         raise ValueError("initial pose puts corners behind the camera")
@@ -226,7 +244,7 @@ def estimate_robot_pose(
                 f"marker id {d.marker_id} is not in the layout; allowed: {sorted(by_id)}"
             )
     largest = max(mine, key=lambda d: d.area_px())
-    initial = _initial_guess(largest, by_id[largest.marker_id], camera)
+    initial = initial_pose_from_marker(largest, by_id[largest.marker_id], camera)
     return fit_robot_pose(
         [(d.marker_id, d.corners_px) for d in mine],
         camera,
@@ -236,6 +254,13 @@ def estimate_robot_pose(
         arena=arena,
         pixel_noise_px=pixel_noise_px,
     )
+
+
+def quad_area_px(corners_px: np.ndarray) -> float:
+    """Returns the area of a corner quadrilateral, shape (4, 2), in square pixels (half the cross
+    product of its diagonals)."""
+    (x0, y0), (x1, y1), (x2, y2), (x3, y3) = np.asarray(corners_px, dtype=float).tolist()
+    return 0.5 * abs((x2 - x0) * (y3 - y1) - (x3 - x1) * (y2 - y0))
 
 
 def planar_pose_from_horizontal_corners(
@@ -253,23 +278,29 @@ def planar_pose_from_horizontal_corners(
       camera: the camera with its extrinsics.
     """
     normalised = _normalised_observations(np.asarray(observed_px, dtype=float), camera)
-    rays = (
-        np.column_stack([normalised, np.ones(len(normalised))])
-        @ camera.rotation_world_from_camera.T
-    )
+    return _horizontal_fit(np.asarray(corners_robot, dtype=float), normalised, camera)
+
+
+def _horizontal_fit(
+    corners_robot: np.ndarray, normalised: np.ndarray, camera: PinholeCamera
+) -> np.ndarray:
+    """:func:`planar_pose_from_horizontal_corners` from normalised image coordinates."""
+    r_wc = camera.rotation_world_from_camera
+    rays = normalised @ r_wc[:, :2].T + r_wc[:, 2]
     origin = camera.position_world
-    with np.errstate(divide="ignore", invalid="ignore"):
-        depth = (corners_robot[:, 2] - origin[2]) / rays[:, 2]
-    if not np.all(np.isfinite(depth)) or np.any(depth <= 0):
+    rise = corners_robot[:, 2] - origin[2]
+    if not np.all(rise * rays[:, 2] > 0):  # also false for NaN or a ray parallel to the plane
         raise ValueError("a corner's ray does not reach its plate's height in front of the camera")
-    points = origin[:2] + depth[:, None] * rays[:, :2]
+    points = origin[:2] + (rise / rays[:, 2])[:, None] * rays[:, :2]
+    scale = 1.0 / len(points)
     local = corners_robot[:, :2]
-    local_mean, points_mean = local.mean(axis=0), points.mean(axis=0)
-    h = (local - local_mean).T @ (points - points_mean)
-    yaw = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
-    c, s = np.cos(yaw), np.sin(yaw)
-    xy = points_mean - np.array([[c, -s], [s, c]]) @ local_mean
-    return np.array([xy[0], xy[1], yaw])
+    local_mean, points_mean = local.sum(axis=0) * scale, points.sum(axis=0) * scale
+    (h00, h01), (h10, h11) = ((local - local_mean).T @ (points - points_mean)).tolist()
+    yaw = math.atan2(h01 - h10, h00 + h11)
+    c, s = math.cos(yaw), math.sin(yaw)
+    lx, ly = local_mean.tolist()
+    px, py = points_mean.tolist()
+    return np.array([px - (c * lx - s * ly), py - (s * lx + c * ly), yaw])
 
 
 def fit_robot_pose(
@@ -305,16 +336,21 @@ def fit_robot_pose(
             raise ValueError(f"marker id {marker_id} is not one of {robot!r}'s in the layout")
     corners_robot = np.concatenate([by_id[i].corners_robot() for i, _ in corners])
     observed = np.concatenate([np.asarray(c, dtype=float).reshape(4, 2) for _, c in corners])
+    observed_n = _normalised_observations(observed, camera)
     if all(by_id[i].rotation[2, 2] > 0.999 for i, _ in corners):
         # Only top plates: the closed-form floor-plane fit is already the answer.
-        initial = planar_pose_from_horizontal_corners(corners_robot, observed, camera)
+        initial = _horizontal_fit(corners_robot, observed_n, camera)
         iterations = 0
-    params, residuals, jac = fit_planar_pose(
-        initial, corners_robot, observed, camera, iterations=iterations
+    params, residuals, jac = _fit_normalised(
+        initial, corners_robot, observed_n, _Projection(camera), iterations
     )
-    rms = float(np.sqrt(np.mean(residuals.reshape(-1, 2) ** 2) * 2.0))
+    rms = math.sqrt(float(residuals @ residuals) * 2.0 / len(residuals))
     sigma = max(rms, pixel_noise_px)
-    covariance = sigma**2 * np.linalg.pinv(jac.T @ jac)
+    information = jac.T @ jac
+    try:  # four or more corners always constrain all three; pinv only for a degenerate view
+        covariance = sigma**2 * np.linalg.inv(information)
+    except np.linalg.LinAlgError:
+        covariance = sigma**2 * np.linalg.pinv(information)
     x, y, yaw = (float(v) for v in params)
     return RobotPoseEstimate(
         robot=robot,

@@ -95,3 +95,26 @@ def test_tracker_overhead_reports_both_robots_and_tracks():
     assert out["teacher"].wall is None
     with pytest.raises(ValueError, match="unknown robots"):
         tracker.update(image, camera, 5.1, robots=("butler",))
+
+
+def test_region_search_and_per_marker_path_agree_with_the_full_frame_fit():
+    """Tracking a moving pair with the region search finds the same poses as full-frame searches,
+    and the per-marker PnP path (``marker_poses=True``) the same as the closed-form one."""
+    camera = overhead_camera()
+    regional, full = Tracker(region_margin_px=12.0), Tracker()
+    for step in range(8):
+        t = 0.1 * step
+        poses = {"teacher": (0.5 + 0.3 * t, -0.3, 1.0 + t), "student": (-1.2, 0.6 - 0.2 * t, -0.5)}
+        image = render_markers(camera, poses)
+        a, b = regional.update(image, camera, t), full.update(image, camera, t)
+        for robot, truth in poses.items():
+            pa, pb = a[robot].measurement, b[robot].measurement
+            assert np.allclose(pa.as_array(), pb.as_array(), atol=1e-4)
+            assert np.hypot(pa.x_m - truth[0], pa.y_m - truth[1]) < 0.01
+    assert regional.region_searches == 7 and regional.full_frame_searches == 0
+    assert full.region_searches == 0
+    per_marker = Tracker().estimate(image, camera, marker_poses=True)
+    assert {d.robot for d in per_marker.detections} == {"teacher", "student"}
+    for robot in poses:
+        fast = full.last_frame.poses[robot]
+        assert np.allclose(per_marker.poses[robot].as_array(), fast.as_array(), atol=1e-3)
