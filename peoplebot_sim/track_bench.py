@@ -193,9 +193,7 @@ def run(
         "samples": n_samples,
         "seed": seed,
         "viewpoints": results,
-        "sequence": sequence_timing(
-            width, height, seed, n_steps=max(100, n_samples), detector_config=detector_config
-        ),
+        "sequence": sequence_timing(width, height, seed, n_steps=max(100, n_samples)),
     }
     if out_path is not None:
         out_path = pathlib.Path(out_path)
@@ -215,57 +213,62 @@ def sequence_timing(
     height: int = 240,
     seed: int = 0,
     n_steps: int = 300,
-    detector_config: DetectorConfig | None = None,
 ) -> dict:
-    """Times tracking over time as the experiments use it: the environment's overhead camera
-    observable renders each control step while the teacher loops, and ``Tracker.update`` follows both
-    robots (searching around their predicted markers). Returns steps/s without the camera, with it,
-    and with tracking, the render and tracking times per frame, tracking's share of the render time,
-    and the tracked pose errors."""
+    """Times tracking over time as the experiments use it, per viewpoint: the environment's camera
+    observable renders each control step while the teacher loops, and the student's vision
+    (:class:`~peoplebot_sim.observers.StudentVision`, ``Tracker.update`` searching each frame)
+    follows the robots - both from the overhead camera; the teacher from the head camera, with the
+    student's odometry and the pan-tilt controller steering the head. Returns per viewpoint the
+    steps/s without the camera, with it, and with tracking, the render and tracking times per
+    frame, tracking's share of the render time and the tracked teacher's position error. Tracking
+    is timed around each vision update; rendering is the environment step's time with the camera
+    less its time without."""
+    from peoplebot_sim.observers import Calibration, StudentVision
+    from peoplebot_sim.performance import make_action
     from peoplebot_sim.task import load
 
-    def run_loop(cameras, track):
-        env = load(seed=seed, cameras=cameras, width=width, height=height)
+    def run_loop(view, track):  # returns env.step seconds, vision seconds, position errors
+        env = load(seed=seed, cameras=(view,) if view else (), width=width, height=height)
         timestep = env.reset()
-        calibration = None
-        if cameras:
-            calibration = _overhead_calibration(env, width, height)
-        tracker = Tracker(detector_config=detector_config or DetectorConfig()) if track else None
-        action = np.zeros(env.action_spec().shape)
+        vision = None
+        if track:
+            vision = StudentVision(view, Calibration(env.physics, width, height))
+            vision.reset(
+                timestep.observation["student_pose"], timestep.observation["student_wheel_angles"]
+            )
+        spec, dt = env.action_spec(), env.task.control_timestep
         errors = []
-        start = time.perf_counter()
+        step_s = track_s = 0.0
         for i in range(n_steps):
-            timestep = env.step(action)
-            if tracker is not None:
-                tracked = tracker.update(
-                    timestep.observation["overhead_camera"], calibration, i * 0.1
-                )
-                pose = tracked["teacher"].track.pose
+            if vision is not None:
+                t0 = time.perf_counter()
+                pose = vision.update(timestep.observation, i * dt, dt)["teacher"]
+                track_s += time.perf_counter() - t0
                 if pose is not None:
                     truth = timestep.observation["teacher_pose"]
                     errors.append(100 * math.hypot(pose[0] - truth[0], pose[1] - truth[1]))
-        seconds = time.perf_counter() - start
+            head = (0.0, 0.0) if vision is None else vision.head_command
+            action = make_action(spec, (0.0, 0.0), head)
+            t0 = time.perf_counter()
+            timestep = env.step(action)
+            step_s += time.perf_counter() - t0
         env.close()
-        return seconds, errors, tracker
+        return step_s, track_s, errors
 
-    physics_s, _, _ = run_loop((), False)
-    render_s, _, _ = run_loop(("overhead",), False)
-    track_s, errors, tracker = run_loop(("overhead",), True)
-    render_per_frame = (render_s - physics_s) / n_steps
-    track_per_frame = (track_s - render_s) / n_steps
-    return {
-        "steps": n_steps,
-        "steps_per_s_without_camera": n_steps / physics_s,
-        "steps_per_s_with_camera": n_steps / render_s,
-        "steps_per_s_with_camera_and_tracking": n_steps / track_s,
-        "render_ms_per_frame": 1000 * render_per_frame,
-        "tracking_ms_per_frame": 1000 * track_per_frame,
-        "tracking_share_of_render_time": track_per_frame / render_per_frame,
-        "region_searches": tracker.region_searches,
-        "full_frame_searches": tracker.full_frame_searches,
-        "tracked_teacher_position_error_cm": _stats(np.asarray(errors)),
-    }
-
-
-def _overhead_calibration(env, width, height):
-    return cameras.camera_model(env.physics, "overhead", width, height)
+    physics_s, _, _ = run_loop(None, False)
+    out = {"steps": n_steps}
+    for view in ("overhead", "head"):
+        render_s, track_s, errors = run_loop(view, True)
+        render_per_frame = (render_s - physics_s) / n_steps
+        track_per_frame = track_s / n_steps
+        out[view] = {
+            "steps_per_s_without_camera": n_steps / physics_s,
+            "steps_per_s_with_camera": n_steps / render_s,
+            "steps_per_s_with_camera_and_tracking": n_steps / (render_s + track_s),
+            "render_ms_per_frame": 1000 * render_per_frame,
+            "tracking_ms_per_frame": 1000 * track_per_frame,
+            "tracking_share_of_render_time": track_per_frame / render_per_frame,
+            "teacher_seen_fraction": len(errors) / n_steps,
+            "tracked_teacher_position_error_cm": _stats(np.asarray(errors)),
+        }
+    return out

@@ -14,6 +14,7 @@ This module reads no simulator: ``peoplebot_sim`` converts a MuJoCo camera (whic
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 
 import cv2
@@ -41,7 +42,9 @@ def check_rotation(rotation, name: str = "rotation") -> np.ndarray:
     rotation = np.asarray(rotation, dtype=float)
     if rotation.shape != (3, 3) or not np.all(np.isfinite(rotation)):
         raise ValueError(f"{name} must be a finite 3x3 matrix, got shape {rotation.shape}")
-    if not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6) or np.linalg.det(rotation) < 0:
+    (a, b, c), (d, e, f), (g, h, i) = rotation.tolist()
+    determinant = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+    if np.abs(rotation.T @ rotation - _IDENTITY).max() > 1e-6 or determinant < 0:
         raise ValueError(f"{name} must be orthonormal with determinant +1, got\n{rotation}")
     return rotation
 
@@ -165,12 +168,17 @@ class PinholeCamera:
         return cls.from_fovy(width, height, fovy_deg, rotation_world_from_camera, position_world)
 
     def with_pose(self, rotation_world_from_camera, position_world) -> PinholeCamera:
-        """Returns the same camera (intrinsics) at another pose, e.g. a moving head camera."""
-        return dataclasses.replace(
-            self,
-            rotation_world_from_camera=rotation_world_from_camera,
-            position_world=position_world,
-        )
+        """Returns the same camera (intrinsics) at another pose, e.g. a moving head camera.
+
+        Only the new pose is validated (the intrinsics already were): this runs every frame."""
+        rotation = check_rotation(rotation_world_from_camera, "rotation_world_from_camera")
+        position = np.asarray(position_world, dtype=float)
+        if position.shape != (3,) or not np.all(np.isfinite(position)):
+            raise ValueError(f"position_world must be 3 finite metres, got {position_world!r}")
+        moved = copy.copy(self)
+        object.__setattr__(moved, "rotation_world_from_camera", _readonly(rotation))
+        object.__setattr__(moved, "position_world", _readonly(position))
+        return moved
 
     @property
     def width(self) -> int:

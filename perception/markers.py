@@ -283,71 +283,34 @@ class MarkerDetector:
             raise ValueError(f"unknown marker id {marker_id!r}; allowed: {sorted(self._by_id)}")
         return self._by_id[marker_id]
 
-    def detect_corners(self, image, regions=None) -> list[tuple[int, np.ndarray]]:
+    def detect_corners(self, image) -> list[tuple[int, np.ndarray]]:
         """Returns ``(marker_id, corners_px (4, 2))`` for each expected marker found, no pose.
 
         Args:
           image: the image (see :meth:`detect`).
-          regions: optional pixel boxes ``(x0, y0, x1, y1)`` (x1, y1 exclusive) to search instead of
-            the whole image; a tracker passes the boxes around its predicted markers, which is
-            several times faster than a full-frame search.
         """
-        gray = to_gray(image)
-        if regions is None:
-            return self._detect_in(gray, 0, 0)
-        # Each detectMarkers call has a fixed cost of about a millisecond, so the regions are packed
-        # side by side into one mosaic, separated by white gaps, and searched in one call.
-        height, width = gray.shape
-        crops = []
-        for x0, y0, x1, y1 in regions:
-            x0, y0 = max(int(x0), 0), max(int(y0), 0)
-            x1, y1 = min(int(np.ceil(x1)), width), min(int(np.ceil(y1)), height)
-            if x1 - x0 >= 8 and y1 - y0 >= 8:
-                crops.append((x0, y0, x1, y1))
-        if not crops:
-            return []
-        gap = 8
-        mosaic_h = max(y1 - y0 for x0, y0, x1, y1 in crops) + 2 * gap
-        mosaic_w = sum(x1 - x0 for x0, y0, x1, y1 in crops) + gap * (len(crops) + 1)
-        mosaic = np.full((mosaic_h, mosaic_w), 255, np.uint8)
-        starts = []
-        cursor = gap
-        for x0, y0, x1, y1 in crops:
-            mosaic[gap : gap + y1 - y0, cursor : cursor + x1 - x0] = gray[y0:y1, x0:x1]
-            starts.append(cursor)
-            cursor += x1 - x0 + gap
-        found = []
-        for marker_id, corners in self._detect_in(mosaic, 0, 0):
-            k = int(np.searchsorted(starts, corners[:, 0].mean(), side="right")) - 1
-            x0, y0 = crops[k][0], crops[k][1]
-            found.append((marker_id, corners + np.array([x0 - starts[k], y0 - gap])))
-        return found
+        return self._detect_in(to_gray(image))
 
-    def _detect_in(self, gray: np.ndarray, x0: int, y0: int) -> list[tuple[int, np.ndarray]]:
+    def _detect_in(self, gray: np.ndarray) -> list[tuple[int, np.ndarray]]:
         corners, ids, _ = self._detector.detectMarkers(gray)
         if ids is None:
             return []
         offset = (
             self.config.apriltag_offset_px if self.config.corner_refinement == "apriltag" else 0.0
         )
-        shift = np.array([x0 - offset, y0 - offset])
         return [
-            (int(i), np.asarray(c, dtype=float).reshape(4, 2) + shift)
+            (int(i), np.asarray(c, dtype=float).reshape(4, 2) - offset)
             for i, c in zip(ids.ravel(), corners, strict=True)
             if int(i) in self.expected_ids
         ]
 
-    def detect(
-        self, image, camera: PinholeCamera | None = None, regions=None
-    ) -> tuple[MarkerDetection, ...]:
+    def detect(self, image, camera: PinholeCamera | None = None) -> tuple[MarkerDetection, ...]:
         """Returns the expected markers seen in ``image``, sorted by id, each with its pose.
 
         Args:
           image: shape (H, W, 3) RGB or (H, W) gray, uint8 (or float in [0, 1]); its size must
             match the camera's ``image_size``.
           camera: the camera that took it, with its current extrinsics; defaults to the detector's.
-          regions: optional pixel boxes to search instead of the whole image (see
-            :meth:`detect_corners`).
 
         If an id is found twice (only one such marker exists, so one is false), the detection whose
         pose best fits the level-robot prior is kept.
@@ -362,7 +325,7 @@ class MarkerDetector:
                 f"match the camera's image_size {camera.image_size}"
             )
         best: dict[int, MarkerDetection] = {}
-        for marker_id, corners in self.detect_corners(gray, regions):
+        for marker_id, corners in self.detect_corners(gray):
             detection = self.marker_pose(marker_id, corners, camera)
             if detection is None:
                 continue

@@ -15,6 +15,7 @@ Conventions (also what ``peoplebot_sim`` uses to pose the rendered head camera):
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -65,18 +66,11 @@ class HeadMount:
 def head_camera_rotation(yaw_rad: float, pan_deg: float, tilt_deg: float) -> np.ndarray:
     """Returns ``rotation_world_from_camera`` (OpenCV axes) of the head on a robot with heading
     ``yaw_rad``."""
-    azimuth = yaw_rad + np.radians(pan_deg)
-    elevation = np.radians(tilt_deg)
-    z = np.array(
-        [
-            np.cos(elevation) * np.cos(azimuth),
-            np.cos(elevation) * np.sin(azimuth),
-            np.sin(elevation),
-        ]
-    )
-    x = np.array([np.sin(azimuth), -np.cos(azimuth), 0.0])
-    y = np.cross(z, x)
-    return np.column_stack([x, y, z])
+    azimuth = yaw_rad + math.radians(pan_deg)
+    elevation = math.radians(tilt_deg)
+    ca, sa, ce, se = math.cos(azimuth), math.sin(azimuth), math.cos(elevation), math.sin(elevation)
+    # Columns: image x (right, level), image y (down) = z cross x, and the optical axis z.
+    return np.array([[sa, se * ca, ce * ca], [-ca, se * sa, ce * sa], [0.0, -ce, se]])
 
 
 def head_position_world(observer_pose, mount: HeadMount = HeadMount()) -> np.ndarray:

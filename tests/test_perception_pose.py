@@ -97,24 +97,50 @@ def test_tracker_overhead_reports_both_robots_and_tracks():
         tracker.update(image, camera, 5.1, robots=("butler",))
 
 
-def test_region_search_and_per_marker_path_agree_with_the_full_frame_fit():
-    """Tracking a moving pair with the region search finds the same poses as full-frame searches,
-    and the per-marker PnP path (``marker_poses=True``) the same as the closed-form one."""
-    camera = overhead_camera()
-    regional, full = Tracker(region_margin_px=12.0), Tracker()
-    for step in range(8):
+def test_fits_from_predictions_reach_the_same_pose_as_fits_from_marker_pnp():
+    """Tracking a moving pair seen obliquely (side plates only): the fits that start from the
+    tracks' predictions end where the fits from each frame's marker PnP end; the per-marker path
+    (``marker_poses=True``) agrees too."""
+    camera = PinholeCamera.from_fovy(
+        320, 240, 50.0, look_at_rotation((-3.0, -3.0, 1.8), (0.0, 0.0, 0.5)), (-3.0, -3.0, 1.8)
+    )
+    tracker, single = Tracker(), Tracker()
+    compared = 0
+    for step in range(12):
         t = 0.1 * step
         poses = {"teacher": (0.5 + 0.3 * t, -0.3, 1.0 + t), "student": (-1.2, 0.6 - 0.2 * t, -0.5)}
         image = render_markers(camera, poses)
-        a, b = regional.update(image, camera, t), full.update(image, camera, t)
+        tracked = tracker.update(image, camera, t)
+        from_pnp = single.estimate(image, camera)
         for robot, truth in poses.items():
-            pa, pb = a[robot].measurement, b[robot].measurement
-            assert np.allclose(pa.as_array(), pb.as_array(), atol=1e-4)
-            assert np.hypot(pa.x_m - truth[0], pa.y_m - truth[1]) < 0.01
-    assert regional.region_searches == 7 and regional.full_frame_searches == 0
-    assert full.region_searches == 0
+            estimate = tracked[robot].measurement
+            assert (estimate is None) == (robot not in from_pnp.poses)
+            if estimate is None:
+                continue
+            compared += step > 0  # from step 1 on, the tracker starts from its prediction
+            assert np.allclose(estimate.as_array(), from_pnp.poses[robot].as_array(), atol=1e-4)
+            # One side plate seen nearly head-on at 3-4 m in a 320x240 image: centimetres (its
+            # yaw is weakly constrained, up to 10 deg off here).
+            assert np.hypot(estimate.x_m - truth[0], estimate.y_m - truth[1]) < 0.03
+    assert compared >= 14
     per_marker = Tracker().estimate(image, camera, marker_poses=True)
     assert {d.robot for d in per_marker.detections} == {"teacher", "student"}
     for robot in poses:
-        fast = full.last_frame.poses[robot]
-        assert np.allclose(per_marker.poses[robot].as_array(), fast.as_array(), atol=1e-3)
+        assert np.allclose(
+            per_marker.poses[robot].as_array(), from_pnp.poses[robot].as_array(), atol=1e-4
+        )
+
+
+def test_a_marker_that_disappears_is_not_invented():
+    """When the teacher's marker is gone from the image (occluded), no pose is measured and the
+    track coasts as 'predicted'."""
+    camera = overhead_camera()
+    tracker = Tracker()
+    for step in range(3):
+        poses = {"teacher": (0.5, -0.3 + 0.02 * step, 1.0), "student": (-1.2, 0.6, -0.5)}
+        out = tracker.update(render_markers(camera, poses), camera, 0.1 * step)
+        assert out["teacher"].track.status == "seen"
+    image = render_markers(camera, {"student": (-1.2, 0.6, -0.5)})
+    out = tracker.update(image, camera, 0.3)
+    assert out["teacher"].measurement is None and out["teacher"].track.status == "predicted"
+    assert out["student"].track.status == "seen"
