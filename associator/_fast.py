@@ -198,9 +198,11 @@ class FastLoop:
         dreams: np.ndarray,
         factors: np.ndarray,
         first_step: int,
+        winners: list | None = None,
     ) -> None:
         """Trains on ``z`` (n, 180) in the weights' dtype, from global step ``first_step``; see
-        ``Associator._train_fast``. ``dreams`` are storage indices, ``factors`` the schedule."""
+        ``Associator._train_fast``. ``dreams`` are storage indices, ``factors`` the schedule;
+        ``winners``, if given, a list that receives each wake's winner (storage index)."""
         n = z.shape[0]
         if n == 0:
             return
@@ -232,6 +234,8 @@ class FastLoop:
             factor = factor_list[t]
             last = t + 1 == n
             if factor == 0.0:  # after n_steps_total nothing is learned
+                if winners is not None:
+                    winners.append(int(r.argmax()))
                 if not last:
                     next_z[:] = z[t + 1]
                     dot(w_bu, pair, out=products)
@@ -239,6 +243,8 @@ class FastLoop:
             # Wake: winner of r = W_bu z, r^c its envelope, z~ = W_td r^c,
             # dW_td = eta' r^c (z - z~), rectified.
             winner = r.argmax()
+            if winners is not None:
+                winners.append(winner)
             run, g, g_eta, g_boost, tmp, tmp3, window, zeros = wake[winner]
             dot(g, run, out=recon)
             subtract(z[t], recon, out=err1)

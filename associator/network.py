@@ -334,7 +334,7 @@ class Associator:
         self._tables = None
         return self
 
-    def _train(self, z: np.ndarray, changed: np.ndarray) -> None:
+    def _train(self, z: np.ndarray, changed: np.ndarray, winners=None) -> None:
         """The modified wake-sleep loop, touching only the units under the truncated envelope.
 
         Wake (per sample): r = W_bu z, winner k = argmax r, r^c = envelope(k),
@@ -342,14 +342,19 @@ class Associator:
         Sleep: r^s = envelope(random unit), z^s = W_td r^s, r~ = W_bu z^s,
         r~^c = envelope(argmax r~),
         dW_bu = +-epsilon' r~^c (z^s - W_bu), then W_bu >= 0 and unit-length rows.
+
+        ``winners``, if given, an int array (n,) that receives each wake's winner (grid index).
         """
+        record = None if winners is None else []
         fast = (
             self.sleep_sign == "self_organising" and self.sleeps_per_wake == 1 and self.epsilon < 1
         )
         if fast:
-            self._train_fast(z, changed)
+            self._train_fast(z, changed, record)
         else:
-            self._train_general(z, changed)
+            self._train_general(z, changed, record)
+        if winners is not None:
+            winners[:] = self._layout.grid_of_storage[np.asarray(record, dtype=np.int64)]
         self.n_steps_ += z.shape[0]
 
     def _draw_dreams(self, n: int) -> np.ndarray:
@@ -363,7 +368,7 @@ class Associator:
         u = self.rng_.random((n, int(self.sleeps_per_wake)))
         return np.minimum((u * n_hidden).astype(np.int64), n_hidden - 1)
 
-    def _train_general(self, z: np.ndarray, changed: np.ndarray) -> None:
+    def _train_general(self, z: np.ndarray, changed: np.ndarray, record=None) -> None:
         """Any sleep sign and number of sleeps: straightforward per-phase updates on the windows
         (each a contiguous run of storage rows, envelope 0 outside the window)."""
         dtype = self._w_bu.dtype
@@ -380,10 +385,14 @@ class Associator:
         tiny = np.finfo(dtype).tiny
         for t in range(n):
             factor = float(factors[t])
-            if factor == 0.0:
-                continue
             zt = zc[t]
+            if factor == 0.0:
+                if record is not None:
+                    record.append(int(np.argmax(w_bu @ zt)))
+                continue
             k = int(np.argmax(w_bu @ zt))
+            if record is not None:
+                record.append(k)
             g = envelopes[k]
             block = w_td[starts[k] : stops[k]]
             rate = eta * factor * (boost if changed[t] else 1.0)
@@ -401,7 +410,7 @@ class Associator:
                 norm[g == 0] = 1.0
                 block /= np.maximum(norm, tiny)[:, None]
 
-    def _train_fast(self, z: np.ndarray, changed: np.ndarray) -> None:
+    def _train_fast(self, z: np.ndarray, changed: np.ndarray, record=None) -> None:
         """The default case (self-organising sign, one sleep per wake, epsilon < 1), equal to
         ``_train_general`` up to rounding, in fewer and cheaper numpy calls (``_fast.FastLoop``):
 
@@ -419,7 +428,7 @@ class Associator:
             self._fast_loop = loop
         dreams = self._layout.storage_of_grid[self._draw_dreams(z.shape[0])[:, 0]]
         zc = np.ascontiguousarray(z, dtype=self._w_bu.dtype)
-        loop.run(zc, changed, dreams, _fast.schedule(self, z.shape[0]), self.n_steps_)
+        loop.run(zc, changed, dreams, _fast.schedule(self, z.shape[0]), self.n_steps_, record)
 
     # ------------------------------------------------------------------------------------------
     # Read-outs

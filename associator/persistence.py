@@ -8,6 +8,11 @@ File layout (format version 1), every entry a plain numpy array:
 - ``W_bu``: (768, 180); ``W_td``: (180, 768); ``n_steps``: int.
 - ``rng_state``: JSON of the generator's ``bit_generator.state``, so training resumes exactly.
 - ``metadata``: JSON of a caller's dict (e.g. the vision encoder's arena), ``{}`` by default.
+
+A :class:`~associator.hierarchy.HierarchicalAssociator` is stored the same way with ``format``
+``"hierarchical_associator"``: the entries above hold its lower network, and two more its own
+state: ``hierarchy_params`` (JSON of ``motor_gain``, ``link_floor`` and ``word_bias``) and ``word_links``
+(n_words, n_hidden).
 """
 
 from __future__ import annotations
@@ -19,9 +24,11 @@ import zipfile
 import numpy as np
 
 from associator.encoding import N_INPUT, N_LANGUAGE
+from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 
 FORMAT = "associator"
+HIERARCHICAL_FORMAT = "hierarchical_associator"
 FORMAT_VERSION = 1
 _BIT_GENERATORS = ("PCG64", "PCG64DXSM", "Philox", "SFC64", "MT19937")
 _KEYS = (
@@ -37,14 +44,30 @@ _KEYS = (
 )
 
 
-def save(model: Associator, path, metadata: dict | None = None) -> str:
-    """Writes a fitted model to ``path`` (``.npz``) and returns the path as a string."""
+def save(model, path, metadata: dict | None = None) -> str:
+    """Writes a fitted model (an ``Associator`` or a ``HierarchicalAssociator``) to ``path``
+    (``.npz``) and returns the path as a string."""
     model._check_fitted()
     path = os.fspath(path)
+    extra = {}
+    if isinstance(model, HierarchicalAssociator):
+        extra = {
+            "hierarchy_params": np.array(
+                json.dumps(
+                    {
+                        "motor_gain": model.motor_gain,
+                        "link_floor": model.link_floor,
+                        "word_bias": model.word_bias,
+                    }
+                )
+            ),
+            "word_links": np.asarray(model.word_links_, dtype=float),
+        }
+        model = model.lower_
     params = model.get_params()
     state = model.rng_.bit_generator.state
     arrays = {
-        "format": np.array(FORMAT),
+        "format": np.array(HIERARCHICAL_FORMAT if extra else FORMAT),
         "format_version": np.array(FORMAT_VERSION),
         "params": np.array(json.dumps(params)),
         "vocabulary_codes": np.asarray(model.vocabulary_codes_),
@@ -53,6 +76,7 @@ def save(model: Associator, path, metadata: dict | None = None) -> str:
         "n_steps": np.array(model.n_steps_, dtype=np.int64),
         "rng_state": np.array(json.dumps(state)),
         "metadata": np.array(json.dumps(metadata or {})),
+        **extra,
     }
     with open(path, "wb") as handle:
         np.savez(handle, **arrays)
@@ -68,8 +92,9 @@ def load_metadata(path) -> dict:
     return _read(path)[1]
 
 
-def load(path) -> Associator:
-    """Reads a model written by ``save``; raises ValueError for a corrupt or mismatched file."""
+def load(path):
+    """Reads a model written by ``save`` (an ``Associator`` or a ``HierarchicalAssociator``, as
+    saved); raises ValueError for a corrupt or mismatched file."""
     return _read(path)[0]
 
 
@@ -77,18 +102,24 @@ def _read(path):
     path = os.fspath(path)
     try:
         with np.load(path, allow_pickle=False) as archive:
-            missing = [key for key in _KEYS if key not in archive.files]
+            keys = _KEYS
+            if "format" in archive.files and str(archive["format"]) == HIERARCHICAL_FORMAT:
+                keys = _KEYS + ("hierarchy_params", "word_links")
+            missing = [key for key in keys if key not in archive.files]
             if missing:
                 _fail(path, f"missing entries {missing}")
-            data = {key: archive[key] for key in _KEYS}
+            data = {key: archive[key] for key in keys}
     except ValueError as error:
         if "not a valid associator file" in str(error):
             raise
         _fail(path, f"unreadable ({error})")
     except (OSError, EOFError, zipfile.BadZipFile, KeyError) as error:
         _fail(path, f"unreadable ({type(error).__name__}: {error})")
-    if str(data["format"]) != FORMAT:
-        _fail(path, f"format is {str(data['format'])!r}, expected {FORMAT!r}")
+    if str(data["format"]) not in (FORMAT, HIERARCHICAL_FORMAT):
+        _fail(
+            path,
+            f"format is {str(data['format'])!r}, expected {FORMAT!r} or {HIERARCHICAL_FORMAT!r}",
+        )
     version = int(data["format_version"])
     if version != FORMAT_VERSION:
         _fail(path, f"format_version {version}; this code reads version {FORMAT_VERSION}")
@@ -141,4 +172,27 @@ def _read(path):
         codes, model.vocabulary_codes_
     ):
         _fail(path, "the vocabulary's language codes differ from this package's phoneme table")
+    if str(data["format"]) == HIERARCHICAL_FORMAT:
+        model = _hierarchical(path, model, data)
     return model, metadata
+
+
+def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
+    try:
+        own = json.loads(str(data["hierarchy_params"]))
+        model = HierarchicalAssociator(**own, **lower.get_params())
+        model._validate_params()
+    except (json.JSONDecodeError, TypeError, ValueError) as error:
+        _fail(path, f"bad hierarchy parameters ({error})")
+    links = data["word_links"]
+    if links.shape != (len(lower.vocabulary), lower.n_hidden):
+        _fail(
+            path,
+            f"word_links has shape {links.shape}, expected "
+            f"({len(lower.vocabulary)}, {lower.n_hidden})",
+        )
+    if not np.all(np.isfinite(links)) or np.any(links < 0):
+        _fail(path, "word_links has negative or non-finite values")
+    model.lower_ = lower
+    model.word_links_ = np.array(links, dtype=float)
+    return model

@@ -87,6 +87,8 @@ def _cmd_reproduce(args) -> int:
     }
     if args.no_videos:
         overrides["videos"] = False
+    if args.paper_only:
+        overrides["hierarchical"] = False
     config = ReproduceConfig.quick(**overrides) if args.quick else ReproduceConfig(**overrides)
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
         f"{config.vision}-{config.motor_source}-seed{config.seed}"
@@ -181,6 +183,11 @@ def build_parser() -> argparse.ArgumentParser:
         "strongest directive",
     )
     rep.add_argument("--no-videos", action="store_true")
+    rep.add_argument(
+        "--paper-only",
+        action="store_true",
+        help="only the paper's network (no hierarchical associator row)",
+    )
     rep.add_argument(
         "--out", type=pathlib.Path, default=None, help="run folder (resumed if present)"
     )

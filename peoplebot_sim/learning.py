@@ -89,9 +89,11 @@ def train(
     dt: float = 0.1,
     chunk: int = 50_000,
     progress: bool = True,
-) -> Associator:
-    """Trains ``model`` on ``stream``, resuming from ``checkpoint_path`` if it holds a partly trained
-    network; saves the network there after every chunk (atomically) and returns it."""
+    desc: str = "learning by watching",
+):
+    """Trains ``model`` (an ``Associator`` or a ``HierarchicalAssociator``) on ``stream``, resuming
+    from ``checkpoint_path`` if it holds a partly trained network; saves the network there after
+    every chunk (atomically) and returns it."""
     checkpoint_path = pathlib.Path(checkpoint_path)
     if checkpoint_path.exists():
         saved = persistence.load(checkpoint_path)
@@ -105,9 +107,7 @@ def train(
     total = len(stream)
     if done > total:
         raise ValueError(f"checkpoint has {done} steps, more than the stream's {total}")
-    bar = tqdm(
-        total=total, initial=done, desc="learning by watching", unit="step", disable=not progress
-    )
+    bar = tqdm(total=total, initial=done, desc=desc, unit="step", disable=not progress)
     while done < total:
         stop = min(done + chunk, total)
         model.partial_fit(*encode_stream(stream, encoder, motor_source, dt, done, stop))

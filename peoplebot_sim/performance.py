@@ -37,7 +37,9 @@ from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_t
 
 ROWS = ("go", "pick", "pick_other_wall", "lift")
 ROW_WORD = {"go": "go", "pick": "pick", "pick_other_wall": "pick", "lift": "lift"}
-POLICIES = ("student", "teacher")
+POLICIES = ("student", "teacher", "student_hierarchical")
+#: Student policies and the network file each drives with (in the run folder).
+STUDENT_NETWORKS = {"student": "network.npz", "student_hierarchical": "hierarchical.npz"}
 #: The paper's Fig. 4 start: top middle of the arena, facing up (world x, y metres, yaw radians).
 FIG4_START = (0.0, 0.6, math.pi / 2)
 
@@ -62,7 +64,7 @@ class StudentAgent:
     area (reconstructed through W_td with the motor input omitted) for the instructed word.
 
     Args:
-      model: a fitted ``Associator``.
+      model: a fitted ``Associator`` or ``HierarchicalAssociator``.
       word: the instruction.
       vision: how the student sees (``StudentVision`` with ``watch_teacher=False``).
       encoder: the vision encoder the model was trained with.
@@ -105,7 +107,7 @@ class StudentAgent:
             return 0.0, 0.0
         wall = world_to_wall(*own_pose, self.arena)
         vision = self.encoder.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True)
-        result = self.model.perform(vision, self.language)
+        result = self.model.perform(vision, self.word)
         self.directive, self.motor = result.directive, result.motor
         if self.graded:
             return self.drive.graded_command(result.motor)

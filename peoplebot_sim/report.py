@@ -112,6 +112,11 @@ def results(config, state, folder: pathlib.Path) -> dict:
     for row in ("go", "pick", "lift", "pick_other_wall"):
         if row in performance and performance[row].get("student"):
             perf[row] = performance[row]["student"]
+    perf["hierarchical"] = {
+        row: performance[row]["student_hierarchical"]
+        for row in ("go", "pick", "lift", "pick_other_wall")
+        if row in performance and performance[row].get("student_hierarchical")
+    }
     perf["teacher_reference"] = {
         row: performance[row]["teacher"]
         for row in ("go", "pick", "lift")
@@ -129,11 +134,17 @@ def results(config, state, folder: pathlib.Path) -> dict:
             "counts_matrix": truth.get("counts_matrix"),
             "paper": PAPER_TABLE_I,
             "motor_weighted": recognition.get("truth_motor_weighted"),
+            "hierarchical": recognition.get("truth_hierarchical"),
             "readouts": recognition.get("readouts"),
             **({"vision": recognition["vision"]} if "vision" in recognition else {}),
             **(
                 {"vision_motor_weighted": recognition["vision_motor_weighted"]}
                 if "vision_motor_weighted" in recognition
+                else {}
+            ),
+            **(
+                {"vision_hierarchical": recognition["vision_hierarchical"]}
+                if "vision_hierarchical" in recognition
                 else {}
             ),
         },
@@ -214,6 +225,12 @@ def markdown(res: dict) -> str:
                 + " | ".join(_pct(rec["motor_weighted"]["confusion"][t][t]) for t in words)
                 + " |"
             )
+        if rec.get("hierarchical"):
+            lines.append(
+                "| ours, hierarchical associator (improvement) | "
+                + " | ".join(_pct(rec["hierarchical"]["confusion"][t][t]) for t in words)
+                + " |"
+            )
         lines.append("")
     if "vision" in rec:
         v = rec["vision"]
@@ -229,6 +246,7 @@ def markdown(res: dict) -> str:
             "truth, same steps, motor-weighted |",
             "|---|---|---|---|---|",
         ]
+        vh = rec.get("vision_hierarchical")
         vw = rec.get("vision_motor_weighted")
         for t in words:
             extra = (
@@ -243,15 +261,29 @@ def markdown(res: dict) -> str:
                 f"| '{t}' | {_pct(v['vision']['confusion'][t][t])} | "
                 f"{_pct(v['truth_same_steps']['confusion'][t][t])} |" + extra
             )
+        if vh:
+            lines += [
+                "Hierarchical associator on the same steps:",
+                "",
+                "| Performing | camera | truth, same steps |",
+                "|---|---|---|",
+            ]
+            for t in words:
+                lines.append(
+                    f"| '{t}' | {_pct(vh['vision']['confusion'][t][t])} | "
+                    f"{_pct(vh['truth_same_steps']['confusion'][t][t])} |"
+                )
         lines.append("")
     perf = res["performance"]
     if perf:
         ref = perf.get("teacher_reference", {})
+        hier = perf.get("hierarchical", {})
         lines += [
             "## Performance on instruction (success rates)",
             "",
-            "| Instruction | student | teacher (reference) |",
-            "|---|---|---|",
+            "| Instruction | student (paper's network) | student (hierarchical) | "
+            "teacher (reference) |",
+            "|---|---|---|---|",
         ]
         names = {
             "go": "'go' (anywhere)",
@@ -264,9 +296,12 @@ def markdown(res: dict) -> str:
                 continue
             s = perf[row]
             r = ref.get(row)
+            h = hier.get(row)
             lines.append(
                 f"| {names[row]} | {_pct(s['success_rate'])} ({s['successes']}/"
                 f"{s['trials']}) | "
+                + (f"{_pct(h['success_rate'])} ({h['successes']}/{h['trials']})" if h else "-")
+                + " | "
                 + (f"{_pct(r['success_rate'])} ({r['successes']}/{r['trials']})" if r else "n/a")
                 + " |"
             )

@@ -30,6 +30,7 @@ import numpy as np
 from tqdm import tqdm
 
 from associator import encoding, persistence
+from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from peoplebot_sim import directives, learning, recognition, report
 from peoplebot_sim.observers import check_vision_mode
@@ -61,6 +62,9 @@ class ReproduceConfig:
       drive: how the student's motor area drives its wheels while performing: 'graded' (the
         reconstructed activations set the wheel speeds) or 'directive' (the strongest unit's
         directive at its fixed speeds).
+      hierarchical: also train and evaluate the two-level associator
+        (``associator.hierarchy``) on the same streams, as a second row beside the paper's
+        network (recognition and performance).
     """
 
     seed: int = 0
@@ -77,6 +81,7 @@ class ReproduceConfig:
     workers: int = 2
     network: tuple = ()
     drive: str = "graded"
+    hierarchical: bool = True
 
     def __post_init__(self):
         check_vision_mode(self.vision)
@@ -183,13 +188,30 @@ def stage_learning(config: ReproduceConfig, folder: pathlib.Path, encoder) -> di
     model = learning.train(
         model, stream, folder / "network.npz", encoder=encoder, motor_source=config.motor_source
     )
-    return {
+    out = {
         "network": "network.npz",
         "steps": int(model.n_steps_),
-        "params": {
-            k: (list(v) if isinstance(v, tuple) else v) for k, v in model.get_params().items()
-        },
+        "params": _listed(model.get_params()),
     }
+    if config.hierarchical:
+        upper = learning.train(
+            HierarchicalAssociator(**config.network_params()),
+            stream,
+            folder / "hierarchical.npz",
+            encoder=encoder,
+            motor_source=config.motor_source,
+            desc="learning by watching (hierarchical)",
+        )
+        out["hierarchical"] = {
+            "network": "hierarchical.npz",
+            "steps": int(upper.n_steps_),
+            "params": _listed(upper.get_params()),
+        }
+    return out
+
+
+def _listed(params: dict) -> dict:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in params.items()}
 
 
 def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, encoder) -> dict:
@@ -203,6 +225,15 @@ def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, enco
         out[key] = recognition.table(recognition.confusion_counts(stream.word, recognised))
         if name == "paper":
             np.save(folder / "recognised_test.npy", recognised)
+    hierarchical = None
+    if config.hierarchical:
+        hierarchical = persistence.load(folder / "hierarchical.npz")
+        recognised = recognition.recognise_stream(
+            hierarchical, stream, encoder, config.motor_source
+        )
+        out["truth_hierarchical"] = recognition.table(
+            recognition.confusion_counts(stream.word, recognised)
+        )
     if config.vision != "truth":
         observed = recognition.watch_with_vision(
             config.seed * 2 + 3, config.vision_test_steps, config.vision
@@ -217,6 +248,10 @@ def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, enco
             config.motor_source,
             motor_gain=recognition.READOUTS["motor_weighted"],
         )
+        if hierarchical is not None:
+            out["vision_hierarchical"] = recognition.recognise_observed(
+                hierarchical, observed, encoder, config.motor_source
+            )
         error = np.hypot(
             *(
                 observed.observed.pose_world[observed.seen, :2]
@@ -231,7 +266,14 @@ def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, enco
 
 
 #: Settings that decide the streams and the network: runs agreeing on them can share both.
-SHARED_LEARNING_SETTINGS = ("seed", "motor_source", "train_steps", "test_steps", "network")
+SHARED_LEARNING_SETTINGS = (
+    "seed",
+    "motor_source",
+    "train_steps",
+    "test_steps",
+    "network",
+    "hierarchical",
+)
 
 
 def reuse_learning(state: RunState, source) -> None:
@@ -259,6 +301,8 @@ def reuse_learning(state: RunState, source) -> None:
             source / "streams" / f"{name}.npz", state.folder / "streams" / f"{name}.npz"
         )
     shutil.copyfile(source / "network.npz", state.folder / "network.npz")
+    if state.data["config"].get("hierarchical"):
+        shutil.copyfile(source / "hierarchical.npz", state.folder / "hierarchical.npz")
     for stage in ("streams", "learning"):
         state.finish(stage, {**other["stages"][stage], "reused_from": str(source)})
         state.data.setdefault("seconds", {})[stage] = 0.0

@@ -16,15 +16,15 @@ from peoplebot_sim.task import TaskConfig, load
 WORD_OF_ROW = performance.ROW_WORD
 
 
-def trial_plan(trials: int, seed: int) -> list[dict]:
-    """Returns every trial to run: per row, ``trials`` random starts shared by student and teacher
+def trial_plan(trials: int, seed: int, policies=performance.POLICIES) -> list[dict]:
+    """Returns every trial to run: per row, ``trials`` random starts shared by the policies
     (paired); the teacher has no reference for docking at a wall without a table."""
     plan = []
     for r, row in enumerate(performance.ROWS):
         rng = np.random.default_rng([seed, r])
         for k in range(trials):
             start, wall = performance.sample_start(row, rng)
-            for policy in performance.POLICIES:
+            for policy in policies:
                 if policy == "teacher" and row == "pick_other_wall":
                     continue
                 plan.append(
@@ -56,11 +56,12 @@ def _agent(
     )
 
 
-def _worker_setup(network: str, vision: str, seed: int):
-    """Returns a worker process's network, student-only environment and camera calibration."""
+def _worker_setup(networks: dict, vision: str, seed: int):
+    """Returns a worker process's networks (policy -> model), student-only environment and camera
+    calibration."""
     import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL in a freshly spawned process)
 
-    model = persistence.load(network)
+    model = {policy: persistence.load(path) for policy, path in networks.items()}
     env = _environment(vision, seed)
     calibration = Calibration(env.physics, 320, 240) if vision != "truth" else None
     return model, env, calibration
@@ -68,14 +69,14 @@ def _worker_setup(network: str, vision: str, seed: int):
 
 def _trials_worker(
     plan: list,
-    network: str,
+    networks: dict,
     vision: str,
     seconds: float,
     seed: int,
     graded: bool,
     progress_file: str,
 ) -> list[dict]:
-    model, env, calibration = _worker_setup(network, vision, seed)
+    models, env, calibration = _worker_setup(networks, vision, seed)
     config = performance.SuccessConfig(seconds=seconds)
     out = []
     for k, item in enumerate(plan):
@@ -84,7 +85,7 @@ def _trials_worker(
             item["policy"],
             WORD_OF_ROW[item["row"]],
             env,
-            model,
+            models.get(item["policy"]),
             vision,
             calibration,
             rng=[seed, row_index, item["index"]],
@@ -132,14 +133,20 @@ def _run_parallel(
 
 def stage_performance(config, folder: pathlib.Path) -> dict:
     """Runs every trial of ``trial_plan`` and the Fig. 4 traces; returns the success rates."""
-    plan = trial_plan(config.trials, config.seed)
+    policies = [p for p in performance.POLICIES if p != "student_hierarchical"]
+    if config.hierarchical:
+        policies.append("student_hierarchical")
+    networks = {
+        p: str(folder / name) for p, name in performance.STUDENT_NETWORKS.items() if p in policies
+    }
+    plan = trial_plan(config.trials, config.seed, tuple(policies))
     workers = max(1, min(config.workers, len(plan)))
     chunks = [plan[i::workers] for i in range(workers)]
     results = _run_parallel(
         _trials_worker,
         chunks,
         (
-            str(folder / "network.npz"),
+            networks,
             config.vision,
             config.trial_seconds,
             config.seed,
@@ -155,7 +162,7 @@ def stage_performance(config, folder: pathlib.Path) -> dict:
     rates = {}
     for row in performance.ROWS:
         rates[row] = {}
-        for policy in performance.POLICIES:
+        for policy in policies:
             mine = [t for t in trials if t["row"] == row and t["policy"] == policy]
             if not mine:
                 rates[row][policy] = None
@@ -261,7 +268,8 @@ def _video_worker(
     graded: bool,
     progress_file: str,
 ) -> list[str]:
-    model, env, calibration = _worker_setup(network, vision, seed)
+    models, env, calibration = _worker_setup({"student": network}, vision, seed)
+    model = models["student"]
     paths, frames = [], 0
     for word in words:
         agent = _agent("student", word, env, model, vision, calibration, graded=graded)

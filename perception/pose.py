@@ -204,9 +204,7 @@ def _fit_normalised(
             cost_trial = float(r_trial @ r_trial)
             if cost_trial <= cost:  # False for NaN (a corner behind the camera)
                 # 0.1 mm and 0.1 mrad: far below what a pixel resolves (5 mm at 3 m, 320 px).
-                converged = (
-                    cost - cost_trial < 1e-9 * max(cost, 1e-12) or np.abs(step).max() < 1e-4
-                )
+                converged = cost - cost_trial < 1e-9 * max(cost, 1e-12) or np.abs(step).max() < 1e-4
                 params, r, jac, cost = trial, r_trial, jac_trial, cost_trial
                 damping, improved = max(damping / 10.0, 1e-9), True
                 break

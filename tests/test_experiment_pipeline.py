@@ -123,6 +123,12 @@ def test_results_json_performance_and_settings(run_folder):
     assert all(s > 0 for s in results["seconds_per_stage"].values())
     assert results["total_seconds"] == pytest.approx(sum(results["seconds_per_stage"].values()))
     assert results["learning"]["steps"] == TINY["train_steps"]
+    assert results["learning"]["hierarchical"]["steps"] == TINY["train_steps"]
+    hierarchical = results["recognition"]["hierarchical"]
+    for t in WORDS:
+        assert sum(hierarchical["confusion"][t].values()) == pytest.approx(1.0)
+    for row in ("go", "pick", "lift", "pick_other_wall"):
+        assert results["performance"]["hierarchical"][row]["trials"] == TINY["trials"]
     assert {k: v["steps"] for k, v in results["streams"].items()} == {
         "train": TINY["train_steps"],
         "test": TINY["test_steps"],
@@ -137,7 +143,8 @@ def test_performance_trials_follow_the_plan(run_folder):
     plan = trials.trial_plan(TINY["trials"], 0)
     key = lambda t: (t["row"], t["policy"], t["index"])  # noqa: E731
     assert sorted(map(key, records)) == sorted(map(key, plan))
-    assert len(plan) == len(performance.ROWS) * 2 - 1
+    # student, hierarchical student and teacher per row; no teacher row for other walls.
+    assert len(plan) == len(performance.ROWS) * 3 - 1
     planned = {key(p): p for p in plan}
     for r in records:
         assert r["start"] == planned[key(r)]["start"]

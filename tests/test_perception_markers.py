@@ -156,11 +156,15 @@ def test_ambiguity_resolved_by_level_prior_for_small_top_markers():
 
     def tilts(tolerance_px):
         rng = np.random.default_rng(5)
-        detector = MarkerDetector(DetectorConfig(ambiguity_tolerance_px=tolerance_px), camera=camera)
+        detector = MarkerDetector(
+            DetectorConfig(ambiguity_tolerance_px=tolerance_px), camera=camera
+        )
         out = []
         for _ in range(40):
             pose = (rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), rng.uniform(-np.pi, np.pi))
-            image = render_markers(camera, {"teacher": pose}, faces=("top",), noise_std=2.0, rng=rng)
+            image = render_markers(
+                camera, {"teacher": pose}, faces=("top",), noise_std=2.0, rng=rng
+            )
             for d in detector.detect(image):
                 normal = camera.rotation_world_from_camera @ d.rotation_camera_from_marker[:, 2]
                 out.append(np.degrees(np.arccos(np.clip(normal[2], -1, 1))))
