@@ -101,10 +101,16 @@ def _cmd_reproduce(args) -> int:
 
 def _cmd_figures(args) -> int:
     from associator import figures, persistence
+    from associator.network import Associator
 
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     model = persistence.load(args.network)
+    if not isinstance(model, Associator):
+        raise SystemExit(
+            f"{args.network} holds a {type(model).__name__}; the paper's figures need the paper's "
+            "network (a run folder's network.npz)"
+        )
     written = [
         figures.fig3_word_codes(out / "fig3_word_codes.png"),
         figures.fig5_language_weights(model, out / "fig5_language_weights.png"),

@@ -232,3 +232,35 @@ def test_finished_stream_is_kept(tmp_path, monkeypatch):
 
     monkeypatch.setattr(streams.StreamGenerator, "generate", fail)
     assert generate_resumable(2, 50, tmp_path, "t", chunk=50) == path
+
+
+def test_interrupted_hierarchical_training_resumes_bit_identical(
+    teacher_stream, tmp_path, monkeypatch
+):
+    """The hierarchical associator checkpoints and resumes like the paper's network: its lower
+    network and its word links end equal to an uninterrupted run's."""
+    from associator.hierarchy import HierarchicalAssociator
+
+    encoder = encoding.VisionEncoder()
+    n = len(teacher_stream)
+
+    def fresh():
+        return HierarchicalAssociator(hidden_shape=(6, 12), n_steps_total=n, rng=0)
+
+    reference = learning.train(
+        fresh(), teacher_stream, tmp_path / "whole.npz", encoder=encoder, chunk=n, progress=False
+    )
+    checkpoint = tmp_path / "resumed.npz"
+    with monkeypatch.context() as patch:
+        interrupt_on_call(patch, learning, "encode_stream", call=3)
+        with pytest.raises(Interrupt):
+            learning.train(
+                fresh(), teacher_stream, checkpoint, encoder=encoder, chunk=400, progress=False
+            )
+    assert persistence.load(checkpoint).n_steps_ == 800
+    resumed = learning.train(
+        fresh(), teacher_stream, checkpoint, encoder=encoder, chunk=400, progress=False
+    )
+    assert isinstance(resumed, HierarchicalAssociator)
+    assert_same_network(resumed.lower_, reference.lower_)
+    np.testing.assert_array_equal(resumed.word_links_, reference.word_links_)
