@@ -263,6 +263,7 @@ def markdown(res: dict) -> str:
             )
         if vh:
             lines += [
+                "",
                 "Hierarchical associator on the same steps:",
                 "",
                 "| Performing | camera | truth, same steps |",
