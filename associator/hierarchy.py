@@ -55,9 +55,9 @@ class HierarchicalAssociator:
     Parameters
     ----------
     motor_gain : float
-        Factor on the motor area at the lower level, in training and read-outs (default 3: the
-        motor cue then weighs like about half the vision code; measured in the README's fidelity
-        notes).
+        Factor on the motor area at the lower level, in training and read-outs. Default 3: on the
+        seed-0 streams recognition went from 87.2 / 92.8 / 99.8 % (go / pick / lift, gain 1) to
+        89.3 / 92.3 / 100 % (``docs/associator.md``).
     link_floor : float
         Added to every word-to-winner link (a count) before normalising, so that a winner never
         seen with a word is unlikely for it, not impossible.
