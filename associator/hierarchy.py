@@ -36,13 +36,14 @@ from __future__ import annotations
 import numpy as np
 
 from associator import encoding
-from associator.encoding import DIRECTIVES, N_LANGUAGE, N_MOTOR, N_VISION
+from associator.encoding import DIRECTIVES, N_MOTOR, N_VISION
 from associator.network import (
     Associator,
     BatchPerformance,
     BatchRecognition,
     Performance,
     Recognition,
+    check_motor_changed,
 )
 
 #: Hyper-parameters of the word layer and the motor gain; everything else is the lower network's.
@@ -128,33 +129,17 @@ class HierarchicalAssociator:
         :meth:`Associator.partial_fit`); the heard word of each sample is its language code's
         nearest vocabulary word."""
         self._validate_params()
-        vision = encoding.check_codes(vision, N_VISION, "vision")
-        language = encoding.check_codes(language, N_LANGUAGE, "language")
-        motor = encoding.check_codes(motor, N_MOTOR, "motor")
-        n = vision.shape[0]
-        if language.shape[0] != n or motor.shape[0] != n:
-            raise ValueError(
-                f"vision, language and motor must have the same number of samples, got "
-                f"{n}, {language.shape[0]} and {motor.shape[0]}"
-            )
-        changed = np.zeros(n, bool) if motor_changed is None else np.asarray(motor_changed)
-        if changed.shape != (n,) or changed.dtype != bool:
-            raise ValueError(
-                f"motor_changed must be a bool array of shape ({n},), got "
-                f"{changed.dtype} {changed.shape}"
-            )
+        z = encoding.assemble(vision, language, motor)
+        n = z.shape[0]
+        changed = check_motor_changed(motor_changed, n)
         if not hasattr(self, "lower_"):
             self.lower_ = Associator(**self.lower_params)
-            self.lower_._initialise()
             self.word_links_ = np.zeros((len(self.vocabulary), self.lower_.n_hidden))
-        lower = self.lower_
-        words = self._heard_words(language)
-        z = encoding.assemble(vision, np.zeros_like(language), motor)
+        words = self._heard_words(z[:, encoding.LANGUAGE_SLICE])
+        z[:, encoding.LANGUAGE_SLICE] = 0.0  # the lower level never hears language
         z[:, encoding.MOTOR_SLICE] *= self.motor_gain
-        lower._validate_params()
         winners = np.empty(n, np.int64)  # each sample's wake winner, for the word links
-        lower._train(z, changed, winners)
-        lower._tables = None
+        self.lower_._learn(z, changed, winners)
         np.add.at(self.word_links_, (words, winners), 1.0)
         return self
 
@@ -172,10 +157,15 @@ class HierarchicalAssociator:
         links = self.word_links_ + self.link_floor
         return links / links.sum(axis=1, keepdims=True)
 
-    def recognise_batch(self, vision, motor) -> BatchRecognition:
+    def recognise_batch(self, vision, motor, motor_gain: float = 1.0) -> BatchRecognition:
         """Recognises ``n`` samples from vision (n, 96) and motor (n, 4) codes; ``scores`` are
-        ``log p(winner | word)`` per vocabulary word, ``winners`` the lower winners."""
+        ``log p(winner | word)`` per vocabulary word, ``winners`` the lower winners.
+
+        ``motor_gain`` weights the motor area further in the read-out, on top of ``motor_gain`` of
+        the hyper-parameters (1: none), as :meth:`Associator.recognise_batch` does."""
         self._check_fitted()
+        if not (np.isfinite(motor_gain) and motor_gain > 0):
+            raise ValueError(f"motor_gain must be a positive number, got {motor_gain!r}")
         vision = encoding.check_codes(vision, N_VISION, "vision")
         motor = encoding.check_codes(motor, N_MOTOR, "motor")
         if vision.shape[0] != motor.shape[0]:
@@ -183,14 +173,14 @@ class HierarchicalAssociator:
                 f"vision and motor must have the same number of samples, got "
                 f"{vision.shape[0]} and {motor.shape[0]}"
             )
-        winners = self.lower_._winners(vision, None, motor * self.motor_gain)
+        winners = self.lower_._winners(vision, None, motor * (self.motor_gain * motor_gain))
         scores = np.log(self.word_likelihoods_()).T[winners]
         words = np.asarray(self.vocabulary)[np.argmax(scores, axis=1)]
         return BatchRecognition(words, scores, winners)
 
-    def recognise(self, vision, motor) -> Recognition:
+    def recognise(self, vision, motor, motor_gain: float = 1.0) -> Recognition:
         """Recognises one sample; see :meth:`recognise_batch` (``hidden`` is the lower r^c)."""
-        batch = self.recognise_batch(np.atleast_2d(vision), np.atleast_2d(motor))
+        batch = self.recognise_batch(np.atleast_2d(vision), np.atleast_2d(motor), motor_gain)
         return Recognition(
             str(batch.words[0]), batch.scores[0], self.lower_.hidden_code(batch.winners[0])
         )

@@ -317,20 +317,15 @@ class Associator:
         self
         """
         z = encoding.assemble(vision, language, motor)
-        n = z.shape[0]
-        if motor_changed is None:
-            changed = np.zeros(n, dtype=bool)
-        else:
-            changed = np.asarray(motor_changed)
-            if changed.shape != (n,) or changed.dtype != bool:
-                raise ValueError(
-                    f"motor_changed must be a bool array of shape ({n},), got "
-                    f"{changed.dtype} {changed.shape}"
-                )
+        return self._learn(z, check_motor_changed(motor_changed, z.shape[0]))
+
+    def _learn(self, z: np.ndarray, changed: np.ndarray, winners=None) -> Associator:
+        """Trains on checked inputs ``z`` (n, 180) and flags ``changed`` (n,); ``winners``, if
+        given, receives each wake's winner (see ``_train``). Returns self."""
         if not hasattr(self, "_w_bu"):
             self._initialise()
         self._validate_params()
-        self._train(z, changed)
+        self._train(z, changed, winners)
         self._tables = None
         return self
 
@@ -544,6 +539,20 @@ class Associator:
         return Performance(
             str(batch.directives[0]), batch.motor[0], self.hidden_code(batch.winners[0])
         )
+
+
+def check_motor_changed(motor_changed, n: int) -> np.ndarray:
+    """Returns the per-sample motor-change flags as a bool array (n,) (None: all False); raises
+    ValueError for anything else."""
+    if motor_changed is None:
+        return np.zeros(n, dtype=bool)
+    changed = np.asarray(motor_changed)
+    if changed.shape != (n,) or changed.dtype != bool:
+        raise ValueError(
+            f"motor_changed must be a bool array of shape ({n},), got "
+            f"{changed.dtype} {changed.shape}"
+        )
+    return changed
 
 
 def _single(code, width: int, name: str) -> np.ndarray:

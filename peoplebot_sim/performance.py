@@ -89,7 +89,6 @@ class StudentAgent:
                 f"unknown word {word!r}; the network knows: {', '.join(model.vocabulary)}"
             )
         self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
-        self.language = encoding.encode_word(word)
         self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
         self.reset()
 

@@ -79,10 +79,7 @@ def recognise_stream(
     for start in range(0, len(stream), chunk):
         stop = min(start + chunk, len(stream))
         vision, _, motor, _ = encode_stream(stream, encoder, motor_source, dt, start, stop)
-        if motor_gain == 1.0:  # the hierarchical network weighs its motor area itself
-            words = model.recognise_batch(vision, motor).words
-        else:
-            words = model.recognise_batch(vision, motor, motor_gain).words
+        words = model.recognise_batch(vision, motor, motor_gain).words
         out[start:stop] = [vocabulary[w] for w in words]
     return out
 

@@ -289,10 +289,7 @@ class MarkerDetector:
         Args:
           image: the image (see :meth:`detect`).
         """
-        return self._detect_in(to_gray(image))
-
-    def _detect_in(self, gray: np.ndarray) -> list[tuple[int, np.ndarray]]:
-        corners, ids, _ = self._detector.detectMarkers(gray)
+        corners, ids, _ = self._detector.detectMarkers(to_gray(image))
         if ids is None:
             return []
         offset = (

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from associator import encoding, persistence
+from associator.hierarchy import HierarchicalAssociator
 from peoplebot_sim import learning, streams
 from peoplebot_sim.streams import TeacherStream, generate_resumable
 
@@ -43,60 +44,62 @@ def assert_same_network(a, b):
 
 
 # ------------------------------------------------------------------------------ learning.train
-@pytest.mark.parametrize("motor_source", ["teacher", "vision"])
+def _network_of(model):
+    """Returns the paper's network inside ``model`` (the lower level of a hierarchical one)."""
+    return model.lower_ if isinstance(model, HierarchicalAssociator) else model
+
+
+@pytest.mark.parametrize(
+    "kind, motor_source",
+    [("paper", "teacher"), ("paper", "vision"), ("hierarchical", "teacher")],
+)
 def test_interrupted_training_resumes_bit_identical(
-    teacher_stream, tmp_path, monkeypatch, small_associator, motor_source
+    teacher_stream, tmp_path, monkeypatch, small_associator, kind, motor_source
 ):
     """Training stopped inside the third chunk (two checkpoints written) and started again with a
-    fresh model ends with the same weights, step count and random state as one uninterrupted
-    call."""
+    fresh model ends with the same weights, step count and random state (and, for the
+    hierarchical associator, word links) as one uninterrupted call."""
     encoder = encoding.VisionEncoder()
     n = len(teacher_stream)
     chunk = 400
 
-    reference = learning.train(
-        small_associator(n),
-        teacher_stream,
-        tmp_path / "whole.npz",
-        encoder=encoder,
-        motor_source=motor_source,
-        chunk=n,
-        progress=False,
-    )
+    def fresh():
+        if kind == "paper":
+            return small_associator(n)
+        return HierarchicalAssociator(hidden_shape=(6, 12), n_steps_total=n, rng=0)
 
+    def train(checkpoint, chunk_size):
+        return learning.train(
+            fresh(),
+            teacher_stream,
+            checkpoint,
+            encoder=encoder,
+            motor_source=motor_source,
+            chunk=chunk_size,
+            progress=False,
+        )
+
+    reference = train(tmp_path / "whole.npz", n)
     checkpoint = tmp_path / "resumed.npz"
     with monkeypatch.context() as patch:
         interrupt_on_call(patch, learning, "encode_stream", call=3)
         with pytest.raises(Interrupt):
-            learning.train(
-                small_associator(n),
-                teacher_stream,
-                checkpoint,
-                encoder=encoder,
-                motor_source=motor_source,
-                chunk=chunk,
-                progress=False,
-            )
+            train(checkpoint, chunk)
     partial = persistence.load(checkpoint)
     assert partial.n_steps_ == 2 * chunk, "the interruption should leave two chunks saved"
     assert not (tmp_path / "resumed.partial.npz").exists()
 
     with monkeypatch.context() as patch:
         calls = interrupt_on_call(patch, learning, "encode_stream", call=0)
-        resumed = learning.train(
-            small_associator(n),
-            teacher_stream,
-            checkpoint,
-            encoder=encoder,
-            motor_source=motor_source,
-            chunk=chunk,
-            progress=False,
-        )
+        resumed = train(checkpoint, chunk)
     assert len(calls) == 2, "the resumed run should train only the chunks not yet saved"
-    assert resumed.n_steps_ == n
-    assert_same_network(resumed, reference)
-    assert_same_network(persistence.load(checkpoint), reference)
-    assert np.all(np.isfinite(resumed.W_bu_)) and np.all(np.isfinite(resumed.W_td_))
+    assert type(resumed) is type(reference) and resumed.n_steps_ == n
+    for model in (resumed, persistence.load(checkpoint)):
+        assert_same_network(_network_of(model), _network_of(reference))
+        if kind == "hierarchical":
+            np.testing.assert_array_equal(model.word_links_, reference.word_links_)
+    network = _network_of(resumed)
+    assert np.all(np.isfinite(network.W_bu_)) and np.all(np.isfinite(network.W_td_))
 
 
 def test_training_is_independent_of_chunk_size(teacher_stream, tmp_path, small_associator):
@@ -232,35 +235,3 @@ def test_finished_stream_is_kept(tmp_path, monkeypatch):
 
     monkeypatch.setattr(streams.StreamGenerator, "generate", fail)
     assert generate_resumable(2, 50, tmp_path, "t", chunk=50) == path
-
-
-def test_interrupted_hierarchical_training_resumes_bit_identical(
-    teacher_stream, tmp_path, monkeypatch
-):
-    """The hierarchical associator checkpoints and resumes like the paper's network: its lower
-    network and its word links end equal to an uninterrupted run's."""
-    from associator.hierarchy import HierarchicalAssociator
-
-    encoder = encoding.VisionEncoder()
-    n = len(teacher_stream)
-
-    def fresh():
-        return HierarchicalAssociator(hidden_shape=(6, 12), n_steps_total=n, rng=0)
-
-    reference = learning.train(
-        fresh(), teacher_stream, tmp_path / "whole.npz", encoder=encoder, chunk=n, progress=False
-    )
-    checkpoint = tmp_path / "resumed.npz"
-    with monkeypatch.context() as patch:
-        interrupt_on_call(patch, learning, "encode_stream", call=3)
-        with pytest.raises(Interrupt):
-            learning.train(
-                fresh(), teacher_stream, checkpoint, encoder=encoder, chunk=400, progress=False
-            )
-    assert persistence.load(checkpoint).n_steps_ == 800
-    resumed = learning.train(
-        fresh(), teacher_stream, checkpoint, encoder=encoder, chunk=400, progress=False
-    )
-    assert isinstance(resumed, HierarchicalAssociator)
-    assert_same_network(resumed.lower_, reference.lower_)
-    np.testing.assert_array_equal(resumed.word_links_, reference.word_links_)

@@ -144,3 +144,24 @@ def test_a_marker_that_disappears_is_not_invented():
     out = tracker.update(image, camera, 0.3)
     assert out["teacher"].measurement is None and out["teacher"].track.status == "predicted"
     assert out["student"].track.status == "seen"
+
+
+def test_closed_form_and_iterative_planar_fits_recover_an_exact_pose():
+    """Exact corners of a top plate: the closed-form floor-plane fit returns the pose, and the
+    Levenberg-Marquardt fit started 5 cm and 10 deg off converges to it."""
+    from perception.layout import default_layout
+    from perception.pose import fit_planar_pose, planar_pose_from_horizontal_corners, robot_to_world
+
+    camera = overhead_camera()
+    top = next(p for p in default_layout() if p.robot == "teacher" and p.face == "top")
+    truth = np.array([0.7, -0.4, 2.2])
+    rotation, position = robot_to_world(*truth)
+    corners_robot = top.corners_robot()
+    pixels = camera.project(corners_robot @ rotation.T + position)
+    np.testing.assert_allclose(
+        planar_pose_from_horizontal_corners(corners_robot, pixels, camera), truth, atol=1e-6
+    )
+    start = truth + np.array([0.05, -0.03, np.radians(10.0)])
+    params, residuals, _ = fit_planar_pose(start, corners_robot, pixels, camera)
+    np.testing.assert_allclose(params, truth, atol=1e-5)
+    assert np.abs(residuals).max() < 1e-3
