@@ -10,9 +10,13 @@ File layout (format version 1), every entry a plain numpy array:
 - ``metadata``: JSON of a caller's dict (e.g. the vision encoder's arena), ``{}`` by default.
 
 A :class:`~associator.hierarchy.HierarchicalAssociator` is stored the same way with ``format``
-``"hierarchical_associator"``: the entries above hold its lower network, and two more its own
-state: ``hierarchy_params`` (JSON of ``motor_gain``, ``link_floor`` and ``word_bias``) and ``word_links``
-(n_words, n_hidden).
+``"hierarchical_associator"``: the entries above hold its lower network, and these its own state:
+``hierarchy_params`` (JSON of its own hyper-parameters: ``motor_gain``, ``link_floor``,
+``word_bias``, ``transition_prior``, ``word_transition_floor``), ``word_links`` (n_words,
+n_hidden), ``word_transitions`` (n_words, n_words), the sparse lower-winner transitions
+``transition_keys`` (m,) int64 (index in a flattened (n_words, n_hidden, n_hidden) table, strictly
+increasing) and ``transition_counts`` (m,), and ``last_sample`` ([word, winner] of the last
+training sample, -1 before any), so that training resumes exactly.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import zipfile
 import numpy as np
 
 from associator.encoding import N_INPUT, N_LANGUAGE
+from associator.hierarchy import _OWN_PARAMS as HIERARCHY_PARAMS
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 
@@ -42,6 +47,14 @@ _KEYS = (
     "rng_state",
     "metadata",
 )
+_HIERARCHY_KEYS = (
+    "hierarchy_params",
+    "word_links",
+    "word_transitions",
+    "transition_keys",
+    "transition_counts",
+    "last_sample",
+)
 
 
 def save(model, path, metadata: dict | None = None) -> str:
@@ -51,17 +64,14 @@ def save(model, path, metadata: dict | None = None) -> str:
     path = os.fspath(path)
     extra = {}
     if isinstance(model, HierarchicalAssociator):
+        own = {name: getattr(model, name) for name in HIERARCHY_PARAMS}
         extra = {
-            "hierarchy_params": np.array(
-                json.dumps(
-                    {
-                        "motor_gain": model.motor_gain,
-                        "link_floor": model.link_floor,
-                        "word_bias": model.word_bias,
-                    }
-                )
-            ),
+            "hierarchy_params": np.array(json.dumps(own)),
             "word_links": np.asarray(model.word_links_, dtype=float),
+            "word_transitions": np.asarray(model.word_transitions_, dtype=float),
+            "transition_keys": np.asarray(model.transition_keys_, dtype=np.int64),
+            "transition_counts": np.asarray(model.transition_counts_, dtype=float),
+            "last_sample": np.array([model.last_word_, model.last_winner_], dtype=np.int64),
         }
         model = model.lower_
     params = model.get_params()
@@ -104,7 +114,7 @@ def _read(path):
         with np.load(path, allow_pickle=False) as archive:
             keys = _KEYS
             if "format" in archive.files and str(archive["format"]) == HIERARCHICAL_FORMAT:
-                keys = _KEYS + ("hierarchy_params", "word_links")
+                keys = _KEYS + _HIERARCHY_KEYS
             missing = [key for key in keys if key not in archive.files]
             if missing:
                 _fail(path, f"missing entries {missing}")
@@ -193,6 +203,43 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
         )
     if not np.all(np.isfinite(links)) or np.any(links < 0):
         _fail(path, "word_links has negative or non-finite values")
+    n_words, n_hidden = len(lower.vocabulary), lower.n_hidden
+    words = data["word_transitions"]
+    if words.shape != (n_words, n_words):
+        _fail(path, f"word_transitions has shape {words.shape}, expected ({n_words}, {n_words})")
+    keys, counts = data["transition_keys"], data["transition_counts"]
+    if keys.ndim != 1 or counts.shape != keys.shape or keys.dtype != np.int64:
+        _fail(
+            path,
+            f"transition_keys {keys.dtype} {keys.shape} and transition_counts {counts.shape} "
+            "must be 1-D of one length, the keys int64",
+        )
+    if len(keys) and (
+        keys[0] < 0 or keys[-1] >= n_words * n_hidden * n_hidden or np.any(np.diff(keys) <= 0)
+    ):
+        _fail(
+            path,
+            f"transition_keys must increase strictly within [0, {n_words * n_hidden * n_hidden})",
+        )
+    for name, values in (("word_transitions", words), ("transition_counts", counts)):
+        if not np.all(np.isfinite(values)) or np.any(values < 0):
+            _fail(path, f"{name} has negative or non-finite values")
+    last = data["last_sample"]
+    if (
+        last.shape != (2,)
+        or not -1 <= last[0] < n_words
+        or not -1 <= last[1] < n_hidden
+        or (last[0] < 0) != (last[1] < 0)
+    ):
+        _fail(
+            path,
+            f"last_sample {last!r} must be [word, winner], both -1 or word < {n_words} and "
+            f"winner < {n_hidden}",
+        )
     model.lower_ = lower
     model.word_links_ = np.array(links, dtype=float)
+    model.word_transitions_ = np.array(words, dtype=float)
+    model.transition_keys_ = np.array(keys)
+    model.transition_counts_ = np.array(counts, dtype=float)
+    model.last_word_, model.last_winner_ = int(last[0]), int(last[1])
     return model

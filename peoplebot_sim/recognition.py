@@ -72,15 +72,43 @@ def recognise_stream(
     dt: float = 0.1,
     chunk: int = 200_000,
     motor_gain: float = 1.0,
+    over_time: bool = False,
+    seen: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Returns the recognised word index for every step of a stream (language omitted)."""
-    out = np.empty(len(stream), np.int8)
+    """Returns the recognised word index for every step of a stream (language omitted).
+
+    ``over_time``: recognise with the hierarchical associator's belief carried from step to step
+    (``HierarchicalAssociator.recognise_sequence``) instead of step by step. ``seen``: (n,) bool,
+    the steps on which the teacher was seen, for ``over_time`` (the others, whose poses may be
+    NaN, only carry the belief on and get the index -1); default all."""
+    n = len(stream)
+    seen = np.ones(n, bool) if seen is None else np.asarray(seen, bool)
+    if seen.shape != (n,):
+        raise ValueError(f"seen must have one entry per step ({n}), got shape {seen.shape}")
+    if not seen.all() and (not over_time or motor_source != "teacher"):
+        raise ValueError(
+            "steps not seen are for over_time recognition with the directives given "
+            "(motor_source 'teacher'; infer them on the whole stream first)"
+        )
+    out = np.full(n, -1, np.int8)
     vocabulary = {w: i for i, w in enumerate(directives.WORDS)}
-    for start in range(0, len(stream), chunk):
-        stop = min(start + chunk, len(stream))
-        vision, _, motor, _ = encode_stream(stream, encoder, motor_source, dt, start, stop)
-        words = model.recognise_batch(vision, motor, motor_gain).words
-        out[start:stop] = [vocabulary[w] for w in words]
+    state = None
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
+        rows = start + np.flatnonzero(seen[start:stop])
+        if len(rows) == stop - start:
+            vision, _, motor, _ = encode_stream(stream, encoder, motor_source, dt, start, stop)
+        else:
+            vision, _, motor, _ = encode_stream(stream.rows(rows), encoder, motor_source, dt)
+        if over_time:
+            result = model.recognise_sequence(
+                vision, motor, motor_gain, seen=seen[start:stop], state=state
+            )
+            state = result.state
+            out[rows] = [vocabulary[w] for w in result.words[seen[start:stop]]]
+        else:
+            words = model.recognise_batch(vision, motor, motor_gain).words
+            out[rows] = [vocabulary[w] for w in words]
     return out
 
 
@@ -170,18 +198,31 @@ def recognise_observed(
     motor_source: str,
     dt: float = 0.1,
     motor_gain: float = 1.0,
+    over_time: bool = False,
 ) -> dict:
-    """Recognition on the steps the student saw, from its estimates and, paired, from the truth."""
+    """Recognition on the steps the student saw, from its estimates and, paired, from the truth
+    (``over_time``: see ``recognise_stream``; the truth then has the same gaps as the camera)."""
     seen = observed.seen
     rows = np.flatnonzero(seen)
     out = {"steps": int(len(seen)), "seen_fraction": float(seen.mean()) if len(seen) else 0.0}
     for name, stream in (("vision", observed.observed), ("truth_same_steps", observed.truth)):
-        subset = TeacherStream(
-            *(getattr(stream, f.name)[rows] for f in dataclasses.fields(TeacherStream))
-        )
+        stream = stream.rows(slice(None))
         if motor_source == "vision":
-            inferred = inferred_directives(stream.pose_world.astype(float), dt)[rows]
-            subset.directive = inferred
-        recognised = recognise_stream(model, subset, encoder, "teacher", dt, motor_gain=motor_gain)
-        out[name] = table(confusion_counts(subset.word, recognised))
+            stream.directive = inferred_directives(stream.pose_world.astype(float), dt)
+        if over_time:
+            recognised = recognise_stream(
+                model,
+                stream,
+                encoder,
+                "teacher",
+                dt,
+                motor_gain=motor_gain,
+                over_time=True,
+                seen=seen,
+            )[rows]
+        else:
+            recognised = recognise_stream(
+                model, stream.rows(rows), encoder, "teacher", dt, motor_gain=motor_gain
+            )
+        out[name] = table(confusion_counts(stream.word[rows], recognised))
     return out

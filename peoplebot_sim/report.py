@@ -78,7 +78,7 @@ def figures(config, folder: pathlib.Path, model, encoder) -> dict:
     for i, word in enumerate(directives.WORDS):
         rows = np.flatnonzero(stream.word == i)[:FIG7_SAMPLES]
         vision, _, motor, _ = learning.encode_stream(
-            _rows(stream, rows), encoder, config.motor_source
+            stream.rows(rows), encoder, config.motor_source
         )
         recognition_inputs[word] = (vision, motor)
         trace = traces[word]
@@ -88,16 +88,6 @@ def figures(config, folder: pathlib.Path, model, encoder) -> dict:
         model, out_dir / "fig7_hidden_activations.png", recognition_inputs, performance_inputs
     )
     return {k: str(pathlib.Path(v).relative_to(folder)) for k, v in paths.items()}
-
-
-def _rows(stream: TeacherStream, rows: np.ndarray) -> TeacherStream:
-    return TeacherStream(
-        stream.pose_world[rows],
-        stream.pose_wall[rows],
-        stream.word[rows],
-        stream.directive[rows],
-        stream.motor_changed[rows],
-    )
 
 
 def results(config, state, folder: pathlib.Path) -> dict:
@@ -135,6 +125,7 @@ def results(config, state, folder: pathlib.Path) -> dict:
             "paper": PAPER_TABLE_I,
             "motor_weighted": recognition.get("truth_motor_weighted"),
             "hierarchical": recognition.get("truth_hierarchical"),
+            "hierarchical_over_time": recognition.get("truth_hierarchical_over_time"),
             "readouts": recognition.get("readouts"),
             **({"vision": recognition["vision"]} if "vision" in recognition else {}),
             **(
@@ -142,11 +133,11 @@ def results(config, state, folder: pathlib.Path) -> dict:
                 if "vision_motor_weighted" in recognition
                 else {}
             ),
-            **(
-                {"vision_hierarchical": recognition["vision_hierarchical"]}
-                if "vision_hierarchical" in recognition
-                else {}
-            ),
+            **{
+                key: recognition[key]
+                for key in ("vision_hierarchical", "vision_hierarchical_over_time")
+                if key in recognition
+            },
         },
         "performance": perf,
         "fig4": performance.get("fig4"),
@@ -227,8 +218,14 @@ def markdown(res: dict) -> str:
             )
         if rec.get("hierarchical"):
             lines.append(
-                "| ours, hierarchical associator (improvement) | "
+                "| ours, hierarchical associator, one step (improvement) | "
                 + " | ".join(_pct(rec["hierarchical"]["confusion"][t][t]) for t in words)
+                + " |"
+            )
+        if rec.get("hierarchical_over_time"):
+            lines.append(
+                "| ours, hierarchical associator, over time (improvement) | "
+                + " | ".join(_pct(rec["hierarchical_over_time"]["confusion"][t][t]) for t in words)
                 + " |"
             )
         lines.append("")
@@ -261,18 +258,26 @@ def markdown(res: dict) -> str:
                 f"| '{t}' | {_pct(v['vision']['confusion'][t][t])} | "
                 f"{_pct(v['truth_same_steps']['confusion'][t][t])} |" + extra
             )
+        vt = rec.get("vision_hierarchical_over_time")
         if vh:
             lines += [
                 "",
-                "Hierarchical associator on the same steps:",
+                "Hierarchical associator on the same steps (one step; over time):",
                 "",
-                "| Performing | camera | truth, same steps |",
-                "|---|---|---|",
+                "| Performing | camera | truth, same steps | camera, over time | "
+                "truth, same steps, over time |",
+                "|---|---|---|---|---|",
             ]
             for t in words:
+                later = (
+                    f" {_pct(vt['vision']['confusion'][t][t])} | "
+                    f"{_pct(vt['truth_same_steps']['confusion'][t][t])} |"
+                    if vt
+                    else " - | - |"
+                )
                 lines.append(
                     f"| '{t}' | {_pct(vh['vision']['confusion'][t][t])} | "
-                    f"{_pct(vh['truth_same_steps']['confusion'][t][t])} |"
+                    f"{_pct(vh['truth_same_steps']['confusion'][t][t])} |" + later
                 )
         lines.append("")
     perf = res["performance"]

@@ -234,6 +234,12 @@ def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, enco
         out["truth_hierarchical"] = recognition.table(
             recognition.confusion_counts(stream.word, recognised)
         )
+        recognised = recognition.recognise_stream(
+            hierarchical, stream, encoder, config.motor_source, over_time=True
+        )
+        out["truth_hierarchical_over_time"] = recognition.table(
+            recognition.confusion_counts(stream.word, recognised)
+        )
     if config.vision != "truth":
         observed = recognition.watch_with_vision(
             config.seed * 2 + 3, config.vision_test_steps, config.vision
@@ -251,6 +257,9 @@ def stage_recognition(config: ReproduceConfig, folder: pathlib.Path, model, enco
         if hierarchical is not None:
             out["vision_hierarchical"] = recognition.recognise_observed(
                 hierarchical, observed, encoder, config.motor_source
+            )
+            out["vision_hierarchical_over_time"] = recognition.recognise_observed(
+                hierarchical, observed, encoder, config.motor_source, over_time=True
             )
         error = np.hypot(
             *(

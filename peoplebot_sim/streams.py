@@ -49,6 +49,10 @@ class TeacherStream:
     def __len__(self) -> int:
         return len(self.word)
 
+    def rows(self, index) -> TeacherStream:
+        """Returns the steps ``index`` (indices, a slice or a bool mask) as a new stream."""
+        return TeacherStream(*(getattr(self, f.name)[index] for f in dataclasses.fields(self)))
+
     @classmethod
     def concatenate(cls, parts) -> TeacherStream:
         parts = list(parts)

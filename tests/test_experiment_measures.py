@@ -199,6 +199,48 @@ def test_recognise_stream_matches_the_network_sample_by_sample(trained_associato
     assert len(np.unique(recognised)) >= 2, "a trained network should not name one word only"
 
 
+def test_recognise_stream_over_time_carries_the_belief_across_chunks_and_gaps(teacher_stream):
+    """Over-time recognition of a stream in chunks, with steps not seen (NaN poses), equals the
+    network's one call on the seen steps; unseen steps get -1 and bad masks are refused."""
+    from associator.hierarchy import HierarchicalAssociator
+
+    encoder = encoding.VisionEncoder()
+    n = len(teacher_stream)
+    model = HierarchicalAssociator(hidden_shape=(6, 12), n_steps_total=n, rng=0)
+    model.fit(*learning.encode_stream(teacher_stream, encoder))
+    seen = np.ones(n, bool)
+    seen[5:40] = False
+    seen[-1] = False
+    gappy = teacher_stream.rows(slice(None))
+    gappy.pose_wall = gappy.pose_wall.copy()
+    gappy.pose_wall[~seen] = np.nan
+    recognised = recognition.recognise_stream(
+        model, gappy, encoder, chunk=111, over_time=True, seen=seen
+    )
+    vision, _, motor, _ = learning.encode_stream(teacher_stream.rows(seen), encoder)
+    words = model.recognise_sequence(vision, motor, seen=seen).words
+    np.testing.assert_array_equal(recognised[seen], [directives.word_index(w) for w in words[seen]])
+    assert np.all(recognised[~seen] == -1)
+    with pytest.raises(ValueError, match="one entry per step"):
+        recognition.recognise_stream(model, gappy, encoder, over_time=True, seen=seen[:-1])
+    with pytest.raises(ValueError, match="over_time"):
+        recognition.recognise_stream(model, gappy, encoder, seen=seen)
+    # Through a camera: both motor sources, over time, on the steps seen only.
+    observed = recognition.ObservedStream(teacher_stream, gappy, seen)
+    outs = {}
+    for motor_source in ("teacher", "vision"):
+        out = recognition.recognise_observed(model, observed, encoder, motor_source, over_time=True)
+        assert out["seen_fraction"] == pytest.approx(seen.mean())
+        for name in ("vision", "truth_same_steps"):
+            assert sum(out[name]["counts"].values()) == seen.sum(), (motor_source, name)
+        outs[motor_source] = out
+    truth = recognition.recognise_stream(model, teacher_stream, encoder, over_time=True, seen=seen)[
+        seen
+    ]
+    expected = recognition.table(recognition.confusion_counts(teacher_stream.word[seen], truth))
+    assert expected["counts_matrix"] == outs["teacher"]["truth_same_steps"]["counts_matrix"]
+
+
 # ------------------------------------------------------------------------------ inferred motor
 def drive(commands, start=(0.3, -0.2, 0.4), linear=0.35, turn=NOMINAL_TURN) -> np.ndarray:
     """Returns the poses (n + 1, 3) of a robot obeying n directives (None: stand still) at the

@@ -124,9 +124,11 @@ def test_results_json_performance_and_settings(run_folder):
     assert results["total_seconds"] == pytest.approx(sum(results["seconds_per_stage"].values()))
     assert results["learning"]["steps"] == TINY["train_steps"]
     assert results["learning"]["hierarchical"]["steps"] == TINY["train_steps"]
-    hierarchical = results["recognition"]["hierarchical"]
-    for t in WORDS:
-        assert sum(hierarchical["confusion"][t].values()) == pytest.approx(1.0)
+    for name in ("hierarchical", "hierarchical_over_time"):
+        hierarchical = results["recognition"][name]
+        for t in WORDS:
+            assert sum(hierarchical["confusion"][t].values()) == pytest.approx(1.0), name
+        assert hierarchical["counts"] == results["recognition"]["counts"], name
     for row in ("go", "pick", "lift", "pick_other_wall"):
         assert results["performance"]["hierarchical"][row]["trials"] == TINY["trials"]
     assert {k: v["steps"] for k, v in results["streams"].items()} == {
