@@ -59,7 +59,7 @@ from associator.network import (
 )
 
 #: Hyper-parameters of the word layer and the motor gain; everything else is the lower network's.
-_OWN_PARAMS = ("motor_gain", "link_floor", "word_bias", "transition_prior", "word_transition_floor")
+OWN_PARAMS = ("motor_gain", "link_floor", "word_bias", "transition_prior", "word_transition_floor")
 
 #: The learned state, dropped by ``fit`` before it starts afresh.
 _LEARNED = (
@@ -161,7 +161,7 @@ class HierarchicalAssociator:
         return tuple(self.lower_params.get("vocabulary", encoding.WORDS))
 
     def _validate_params(self) -> None:
-        for name in _OWN_PARAMS:
+        for name in OWN_PARAMS:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")
@@ -284,27 +284,22 @@ class HierarchicalAssociator:
         single = self.word_likelihoods_()[:, current].T
         evidence = single.copy()
         known = previous >= 0
-        if not np.any(known):
+        table = self.transition_keys_
+        if not np.any(known) or len(table) == 0:  # no transition counted: p(k_t | word)
             return evidence
         before, now = previous[known], current[known]
         keys = self._transition_key(np.arange(n_words)[None, :], before[:, None], now[:, None])
+        at = np.minimum(np.searchsorted(table, keys), len(table) - 1)
+        hit = table[at] == keys
         counts = np.zeros(keys.shape)
-        if len(self.transition_keys_):
-            table = self.transition_keys_
-            at = np.minimum(np.searchsorted(table, keys), len(table) - 1)
-            hit = table[at] == keys
-            counts[hit] = self.transition_counts_[at[hit]]
-            leaving = (
-                np.bincount(
-                    self.transition_keys_ // n_hidden,
-                    weights=self.transition_counts_,
-                    minlength=n_words * n_hidden,
-                )
-                .reshape(n_words, n_hidden)[:, before]
-                .T
+        counts[hit] = self.transition_counts_[at[hit]]
+        leaving = (
+            np.bincount(
+                table // n_hidden, weights=self.transition_counts_, minlength=n_words * n_hidden
             )
-        else:
-            leaving = np.zeros(keys.shape)
+            .reshape(n_words, n_hidden)[:, before]
+            .T
+        )
         prior = self.transition_prior
         evidence[known] = (counts + prior * single[known]) / (leaving + prior)
         return evidence
@@ -346,11 +341,12 @@ class HierarchicalAssociator:
         transitions = self.word_transition_probabilities_()
         beliefs = np.empty((len(seen), n_words))
         belief = state.posterior
-        for t, e in enumerate(evidence):  # the forward filter, one step at a time
-            predicted = belief @ transitions
-            belief = predicted * e
-            total = belief.sum()
-            belief = belief / total if total > 0 else predicted
+        # The forward filter, one step at a time. Every transition probability and every
+        # evidence value is positive (the floors and the prior are validated positive), so the
+        # product never sums to zero.
+        for t, e in enumerate(evidence):
+            belief = (belief @ transitions) * e
+            belief /= belief.sum()
             beliefs[t] = belief
         last = int(winners[-1]) if len(seen) else state.last_winner
         with np.errstate(divide="ignore"):

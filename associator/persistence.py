@@ -28,7 +28,7 @@ import zipfile
 import numpy as np
 
 from associator.encoding import N_INPUT, N_LANGUAGE
-from associator.hierarchy import _OWN_PARAMS as HIERARCHY_PARAMS
+from associator.hierarchy import OWN_PARAMS as HIERARCHY_PARAMS
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 
