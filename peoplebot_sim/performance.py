@@ -178,13 +178,16 @@ def sample_start(
                 return (float(x), float(y), float(rng.uniform(-math.pi, math.pi))), "top"
     if row in ("pick", "pick_other_wall"):
         wall = "top" if row == "pick" else str(rng.choice(["right", "bottom", "left"]))
-        pose = WallPose(
-            float(rng.uniform(1.0, 1.6)),
-            float(rng.uniform(-0.8, 0.8)),
-            float(rng.uniform(-45.0, 45.0)),
-            wall,
-        )
-        return wall_to_world(pose, arena), wall
+        while True:  # inside the wall's area: a corner of the box lies in a neighbour's area
+            pose = WallPose(
+                float(rng.uniform(1.0, 1.6)),
+                float(rng.uniform(-0.8, 0.8)),
+                float(rng.uniform(-45.0, 45.0)),
+                wall,
+            )
+            start = wall_to_world(pose, arena)
+            if world_to_wall(*start, arena).wall == wall:
+                return start, wall
     if row == "lift":
         dock = Teacher(arena=arena).dock_pose
         return (

@@ -133,6 +133,23 @@ def test_teacher_agent_actions_satisfy_the_spec(student_env, word):
     assert np.any(actions[:, :2] != 0)
 
 
+@pytest.mark.parametrize("row", ["pick", "pick_other_wall"])
+def test_pick_starts_lie_in_their_wall_area_within_the_stated_box(row):
+    """The box's far corners (1.6 m out, 0.8 m aside) lie in a neighbouring wall's area; those
+    starts are redrawn, so every 'pick' starts where the wall frame refers to its own wall."""
+    from perception.wallframe import world_to_wall
+
+    rng = np.random.default_rng(3)
+    walls = set()
+    for _ in range(300):
+        start, wall = performance.sample_start(row, rng)
+        pose = world_to_wall(*start)
+        walls.add(wall)
+        assert pose.wall == wall
+        assert 1.0 <= pose.x_m <= 1.6 and abs(pose.y_m) <= 0.8 and abs(pose.phi_deg) <= 45.0
+    assert walls == ({"top"} if row == "pick" else {"right", "bottom", "left"})
+
+
 def test_make_action_clips_into_the_spec(student_env):
     spec = student_env.action_spec()
     for drive, head in (
