@@ -45,6 +45,22 @@ def test_recognition_and_performance_well_above_chance(learned):
     assert performed.motor.shape == (len(vision), 4) and np.all(performed.motor >= 0)
 
 
+def test_performance_matches_vision_by_angle(learned):
+    """The performing winner compares the vision code with each unit's vision weights by cosine
+    (their lengths differ: the weights were normalised with the motor area present), so it does
+    not depend on the vision code's scale, and it is the unit of largest cosine plus word bias."""
+    model, _, stream, (vision, _, _, _) = learned
+    words = [WORDS[i] for i in stream.word[:500]]
+    full = model.perform_batch(vision[:500], words)
+    half = model.perform_batch(0.5 * vision[:500], words)
+    np.testing.assert_array_equal(full.winners, half.winners)
+    w = model.lower_.W_bu_[:, :96].astype(float)
+    cosine = vision[:500] @ (w / np.linalg.norm(w, axis=1, keepdims=True)).T
+    cosine /= np.linalg.norm(vision[:500], axis=1, keepdims=True)
+    bias = model.word_bias * np.log(model.word_likelihoods_())[stream.word[:500]]
+    np.testing.assert_array_equal(full.winners, (cosine + bias).argmax(axis=1))
+
+
 def test_word_links_count_each_sample_at_its_wake_winner(learned):
     """Every sample adds one to its heard word's link at its wake winner: the links sum to the
     samples per word, and the likelihoods of each word sum to one."""
