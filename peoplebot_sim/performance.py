@@ -10,7 +10,8 @@ Success, per trial (all in ``SuccessConfig``):
 - ``go``: from a random free pose anywhere, for 60 s: never touches a wall or the table, visits at
   least two wall areas, and keeps moving (drives a path of at least 0.2 m in every 10 s window).
 - ``pick`` (table wall): from a random pose in the table's wall area, 1.0-1.6 m from the wall, at most
-  0.8 m either side of its middle, facing it within 45 deg: within 60 s reaches the teacher's
+  0.8 m either side of its middle, facing it within 45 deg (starts in the box's far corners, which
+  lie in a side wall's area, are drawn again): within 60 s reaches the teacher's
   docked pose within 15 cm and 20 deg, without touching anything.
 - ``pick`` (other walls): the same start relative to one of the three other walls; success is the
   equivalent docked pose at that wall (the wall frame cannot tell walls apart, so the student docks
