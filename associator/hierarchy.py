@@ -28,8 +28,9 @@ Read-outs:
   competition top-down: the winner maximises ``cos(v, W_bu,k[vision]) + word_bias * log p(k |
   word)``, the cosine between the vision code and the vision part of the unit's bottom-up
   weights (the motor area, absent, is left out of both), so among units that match what the
-  student sees, those the word was heard at win. The motor area reconstructed through the lower ``W_td`` at that
-  winner (divided by ``motor_gain``) is the graded output, its strongest unit the directive.
+  student sees, those the word was heard at win. The motor area reconstructed through the lower
+  ``W_td`` at that winner (divided by ``motor_gain``) is the graded output, its strongest unit the
+  directive.
 - Recognition over time (:meth:`HierarchicalAssociator.recognise_sequence`): the word layer also
   counts, per heard word, which lower winner follows which (``p(k_t | k_(t-1), word)``, backed off
   to ``p(k_t | word)`` with weight ``transition_prior``), and which word follows which
