@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from associator import persistence, synthetic
-from associator.encoding import DIRECTIVES, WORDS
+from associator.encoding import DIRECTIVES, VISION_SLICE, WORDS
 from associator.hierarchy import HierarchicalAssociator, SequenceState
 from associator.network import Associator
 
@@ -54,7 +54,7 @@ def test_performance_matches_vision_by_angle(learned):
     full = model.perform_batch(vision[:500], words)
     half = model.perform_batch(0.5 * vision[:500], words)
     np.testing.assert_array_equal(full.winners, half.winners)
-    w = model.lower_.W_bu_[:, :96].astype(float)
+    w = model.lower_.W_bu_[:, VISION_SLICE].astype(float)
     cosine = vision[:500] @ (w / np.linalg.norm(w, axis=1, keepdims=True)).T
     cosine /= np.linalg.norm(vision[:500], axis=1, keepdims=True)
     bias = model.word_bias * np.log(model.word_likelihoods_())[stream.word[:500]]

@@ -15,6 +15,7 @@ from peoplebot_sim.observers import Calibration, StudentVision
 from peoplebot_sim.performance import StudentAgent, TeacherAgent, make_action
 from peoplebot_sim.recognition import watch_with_vision
 from peoplebot_sim.reproduce import ReproduceConfig
+from perception.wallframe import world_to_wall
 
 WORDS = ("go", "pick", "lift")
 WIDTH, HEIGHT = 320, 240  # the trials' camera size
@@ -137,8 +138,6 @@ def test_teacher_agent_actions_satisfy_the_spec(student_env, word):
 def test_pick_starts_lie_in_their_wall_area_within_the_stated_box(row):
     """The box's far corners (1.6 m out, 0.8 m aside) lie in a neighbouring wall's area; those
     starts are redrawn, so every 'pick' starts where the wall frame refers to its own wall."""
-    from perception.wallframe import world_to_wall
-
     rng = np.random.default_rng(3)
     walls = set()
     for _ in range(300):
