@@ -79,16 +79,16 @@ def recognise_stream(
 
     ``over_time``: recognise with the hierarchical associator's belief carried from step to step
     (``HierarchicalAssociator.recognise_sequence``) instead of step by step. ``seen``: (n,) bool,
-    the steps on which the teacher was seen, for ``over_time`` (the others, whose poses may be
-    NaN, only carry the belief on and get the index -1); default all."""
+    the steps on which the teacher was seen (the others, whose poses may be NaN, get the index -1;
+    over time they only carry the belief on); default all."""
     n = len(stream)
     seen = np.ones(n, bool) if seen is None else np.asarray(seen, bool)
     if seen.shape != (n,):
         raise ValueError(f"seen must have one entry per step ({n}), got shape {seen.shape}")
-    if not seen.all() and (not over_time or motor_source != "teacher"):
+    if not seen.all() and motor_source != "teacher":
         raise ValueError(
-            "steps not seen are for over_time recognition with the directives given "
-            "(motor_source 'teacher'; infer them on the whole stream first)"
+            "steps not seen need the directives given (motor_source 'teacher'; infer them on the "
+            "whole stream first)"
         )
     out = np.full(n, -1, np.int8)
     vocabulary = {w: i for i, w in enumerate(directives.WORDS)}
@@ -209,20 +209,15 @@ def recognise_observed(
         stream = stream.rows(slice(None))
         if motor_source == "vision":
             stream.directive = inferred_directives(stream.pose_world.astype(float), dt)
-        if over_time:
-            recognised = recognise_stream(
-                model,
-                stream,
-                encoder,
-                "teacher",
-                dt,
-                motor_gain=motor_gain,
-                over_time=True,
-                seen=seen,
-            )[rows]
-        else:
-            recognised = recognise_stream(
-                model, stream.rows(rows), encoder, "teacher", dt, motor_gain=motor_gain
-            )
+        recognised = recognise_stream(
+            model,
+            stream,
+            encoder,
+            "teacher",
+            dt,
+            motor_gain=motor_gain,
+            over_time=over_time,
+            seen=seen,
+        )[rows]
         out[name] = table(confusion_counts(stream.word[rows], recognised))
     return out

@@ -223,16 +223,24 @@ def test_recognise_stream_over_time_carries_the_belief_across_chunks_and_gaps(te
     assert np.all(recognised[~seen] == -1)
     with pytest.raises(ValueError, match="one entry per step"):
         recognition.recognise_stream(model, gappy, encoder, over_time=True, seen=seen[:-1])
-    with pytest.raises(ValueError, match="over_time"):
-        recognition.recognise_stream(model, gappy, encoder, seen=seen)
-    # Through a camera: both motor sources, over time, on the steps seen only.
+    with pytest.raises(ValueError, match="motor_source 'teacher'"):
+        recognition.recognise_stream(model, gappy, encoder, "vision", seen=seen)
+    # One step at a time, the seen steps are recognised alone and the others get -1.
+    one_step = recognition.recognise_stream(model, gappy, encoder, chunk=111, seen=seen)
+    words = model.recognise_batch(vision, motor).words
+    np.testing.assert_array_equal(one_step[seen], [directives.word_index(w) for w in words])
+    assert np.all(one_step[~seen] == -1)
+    # Through a camera: both motor sources, over time and one step, on the steps seen only.
     observed = recognition.ObservedStream(teacher_stream, gappy, seen)
     outs = {}
     for motor_source in ("teacher", "vision"):
-        out = recognition.recognise_observed(model, observed, encoder, motor_source, over_time=True)
-        assert out["seen_fraction"] == pytest.approx(seen.mean())
-        for name in ("vision", "truth_same_steps"):
-            assert sum(out[name]["counts"].values()) == seen.sum(), (motor_source, name)
+        for over_time in (False, True):
+            out = recognition.recognise_observed(
+                model, observed, encoder, motor_source, over_time=over_time
+            )
+            assert out["seen_fraction"] == pytest.approx(seen.mean())
+            for name in ("vision", "truth_same_steps"):
+                assert sum(out[name]["counts"].values()) == seen.sum(), (motor_source, name)
         outs[motor_source] = out
     truth = recognition.recognise_stream(model, teacher_stream, encoder, over_time=True, seen=seen)[
         seen
