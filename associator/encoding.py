@@ -169,11 +169,8 @@ class VisionEncoder:
         Each coordinate is the vertex of the parabola through the log-activations of the strongest
         unit and its two neighbours, which is exact for an untruncated Gaussian bump.
         """
-        codes = check_codes(codes, N_VISION, "vision")
         h = self.half_side_m
-        x_units = _peak(codes[:, X_SLICE], circular=False)
-        y_units = _peak(codes[:, Y_SLICE], circular=False)
-        phi_units = _peak(codes[:, PHI_SLICE], circular=True)
+        x_units, y_units, phi_units = vision_code_centres(codes).T
         x = np.clip(x_units / (N_X - 1) * h, 0.0, h)
         y = np.clip(y_units / (N_Y - 1) * 2 * h - h, -h, h)
         phi = (phi_units * 360.0 / N_PHI) % 360.0 - 180.0
@@ -185,6 +182,22 @@ class VisionEncoder:
         if code.shape != (N_VISION,):
             raise ValueError(f"vision code must have shape ({N_VISION},), got {code.shape}")
         return self.decode_batch(code[None])[0]
+
+
+def vision_code_centres(codes) -> np.ndarray:
+    """Returns where the three Gaussian bumps of vision codes (n, 96) lie, in units of each
+    population (the spacing of neighbouring units), shape (n, 3): x in [0, 35], y in [0, 35], phi
+    in [0, 24) (circular; unit 12 is 0 deg). The arena's size is not needed, so the associator can
+    compare poses in its own code's resolution."""
+    codes = check_codes(codes, N_VISION, "vision")
+    return np.stack(
+        [
+            _peak(codes[:, X_SLICE], circular=False),
+            _peak(codes[:, Y_SLICE], circular=False),
+            _peak(codes[:, PHI_SLICE], circular=True) % N_PHI,
+        ],
+        axis=1,
+    )
 
 
 def _peak(codes: np.ndarray, circular: bool) -> np.ndarray:

@@ -26,11 +26,22 @@ Read-outs:
   ``p(k | word)`` (a likelihood read-out: a frequent word does not win by frequency alone).
 - Performance (vision and word given, motor omitted): the word biases the lower level's
   competition top-down: the winner maximises ``cos(v, W_bu,k[vision]) + word_bias * log p(k |
-  word)``, the cosine between the vision code and the vision part of the unit's bottom-up
-  weights (the motor area, absent, is left out of both), so among units that match what the
-  student sees, those the word was heard at win. The motor area reconstructed through the lower
-  ``W_td`` at that winner (divided by ``motor_gain``) is the graded output, its strongest unit the
-  directive.
+  word) + pose_weight * log N(pose | word, k)``. The cosine is between the vision code and the
+  vision part of the unit's bottom-up weights (the motor area, absent, is left out of both), so
+  among units that match what the student sees, those the word was heard at win. The last term
+  comes from statistics the word layer counts once the lower level has learned
+  (:meth:`HierarchicalAssociator.count_word_statistics`, a pass over the training stream with
+  the lower level frozen): for each word and lower winner, how many samples it won, their pose
+  (the vision code's bump centres: mean and spread, the heading's circular) and their
+  directives. ``log N`` is the log-likelihood of the pose under that word-and-unit Gaussian plus
+  the log of its count, and only components with at least ``min_word_samples`` samples compete.
+  The lower weights are smooth (each unit learnt with its map neighbours), which carries 'go'
+  across poses the teacher never showed; the counted components are sharp, which 'pick' needs
+  to dock. The output is the winner's directive counts under the word, ``p(directive | k,
+  word)``, as graded activations, the most frequent the directive (a unit won under two words,
+  e.g. at the table where 'pick' settles and 'lift' backs away, gives each word its own
+  directive). Without counted statistics the output is the motor area reconstructed through the
+  lower ``W_td`` at the winner of the first two terms (divided by ``motor_gain``).
 - Recognition over time (:meth:`HierarchicalAssociator.recognise_sequence`): the word layer also
   counts, per heard word, which lower winner follows which (``p(k_t | k_(t-1), word)``, backed off
   to ``p(k_t | word)`` with weight ``transition_prior``), and which word follows which
@@ -61,7 +72,20 @@ from associator.network import (
 )
 
 #: Hyper-parameters of the word layer and the motor gain; everything else is the lower network's.
-OWN_PARAMS = ("motor_gain", "link_floor", "word_bias", "transition_prior", "word_transition_floor")
+OWN_PARAMS = (
+    "motor_gain",
+    "link_floor",
+    "word_bias",
+    "transition_prior",
+    "word_transition_floor",
+    "pose_weight",
+    "pose_width_floor",
+    "min_word_samples",
+)
+
+#: The word layer's pose and motor statistics (``count_word_statistics``), counted with the lower
+#: level frozen: further training of the lower level drops them.
+_WORD_STATISTICS = ("word_samples_", "word_pose_sums_", "word_pose_squares_", "word_motor_counts_")
 
 #: The learned state, dropped by ``fit`` before it starts afresh.
 _LEARNED = (
@@ -72,7 +96,22 @@ _LEARNED = (
     "transition_counts_",
     "last_word_",
     "last_winner_",
+    *_WORD_STATISTICS,
 )
+
+
+#: Samples performed at a time in ``perform_batch`` (its work arrays are chunk x n_hidden).
+_PERFORM_CHUNK = 4096
+#: Units of the heading's population code (360 deg around).
+N_PHI_UNITS = encoding.N_PHI
+
+
+def _pose_features(vision: np.ndarray) -> np.ndarray:
+    """Returns (n, 4): the x and y bump centres of vision codes in units, and the heading's unit
+    vector (cos, sin)."""
+    centres = encoding.vision_code_centres(vision)
+    angle = centres[:, 2] * (2 * np.pi / N_PHI_UNITS)
+    return np.stack([centres[:, 0], centres[:, 1], np.cos(angle), np.sin(angle)], axis=1)
 
 
 class SequenceState(NamedTuple):
@@ -125,6 +164,17 @@ class HierarchicalAssociator:
         Added to every count of word-to-word transitions before normalising, so that a
         transition never seen (e.g. 'pick' back to 'go') stays possible (0.1 to 100 changed
         recognition by at most 0.2 points on the seed-0 streams).
+    pose_weight : float
+        Weight of the counted word-and-unit pose log-likelihood in performance. Default 0.03:
+        on the seed-0 network of ``peoplebot reproduce`` (50 trials per word) 'go' / 'pick' /
+        'lift' succeeded 47 / 45 / 50 at 0.03 and 43 / 43 / 50 at 0.05; 0.1 lets the sharp
+        components dominate and 'go' fell to 24/30 in scratch trials (``docs/associator.md``).
+    pose_width_floor : float
+        Least spread of a counted component along each pose coordinate, in units of the vision
+        code (0.5: 2.9 cm of x, 5.7 cm of y, 7.5 deg of phi in the default arena).
+    min_word_samples : int
+        Components counted fewer times than this under their word do not compete in performance
+        (their statistics are noise).
     **lower_params
         Hyper-parameters of the lower network (:class:`Associator`; ``vocabulary`` and ``rng``
         included), the paper's defaults otherwise.
@@ -138,6 +188,9 @@ class HierarchicalAssociator:
         word_bias: float = 0.05,
         transition_prior: float = 1.0,
         word_transition_floor: float = 1.0,
+        pose_weight: float = 0.03,
+        pose_width_floor: float = 0.5,
+        min_word_samples: int = 20,
         **lower_params,
     ):
         self.motor_gain = motor_gain
@@ -145,6 +198,9 @@ class HierarchicalAssociator:
         self.word_bias = word_bias
         self.transition_prior = transition_prior
         self.word_transition_floor = word_transition_floor
+        self.pose_weight = pose_weight
+        self.pose_width_floor = pose_width_floor
+        self.min_word_samples = min_word_samples
         self.lower_params = dict(lower_params)
 
     def get_params(self) -> dict:
@@ -156,6 +212,9 @@ class HierarchicalAssociator:
             word_bias=float(self.word_bias),
             transition_prior=float(self.transition_prior),
             word_transition_floor=float(self.word_transition_floor),
+            pose_weight=float(self.pose_weight),
+            pose_width_floor=float(self.pose_width_floor),
+            min_word_samples=int(self.min_word_samples),
         )
         return params
 
@@ -168,6 +227,10 @@ class HierarchicalAssociator:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        if float(self.min_word_samples) != int(self.min_word_samples):
+            raise ValueError(
+                f"min_word_samples must be a positive whole number, got {self.min_word_samples!r}"
+            )
 
     def _check_fitted(self) -> None:
         if not hasattr(self, "lower_"):
@@ -207,6 +270,8 @@ class HierarchicalAssociator:
             self.last_word_, self.last_winner_ = -1, -1
         if n == 0:
             return self
+        for name in _WORD_STATISTICS:  # counted on the lower level as it was: now stale
+            self.__dict__.pop(name, None)
         words = self._heard_words(z[:, encoding.LANGUAGE_SLICE])
         z[:, encoding.LANGUAGE_SLICE] = 0.0  # the lower level never hears language
         z[:, encoding.MOTOR_SLICE] *= self.motor_gain
@@ -244,6 +309,78 @@ class HierarchicalAssociator:
             minlength=len(merged),
         )
         self.transition_keys_ = merged
+
+    def count_word_statistics(self, vision, language, motor) -> HierarchicalAssociator:
+        """Counts, with the lower level frozen, what the word layer needs to perform: for each
+        heard word and lower winner (the recognition winner of vision and motor, as after
+        training), the number of samples, the sums of the pose and of its squares (the vision
+        code's bump centres, in units of the code; the heading as a unit vector) and the count of
+        each directive. Call it on the training stream once training is over, in pieces if need
+        be (the counts add up); ``partial_fit`` drops them, as the lower level then changes.
+        Shapes as for :meth:`partial_fit`. Returns self."""
+        self._check_fitted()
+        self._validate_params()
+        z = encoding.assemble(vision, language, motor)
+        n_words, n_hidden = len(self.vocabulary), self.lower_.n_hidden
+        if not hasattr(self, "word_samples_"):
+            self.word_samples_ = np.zeros((n_words, n_hidden))
+            self.word_pose_sums_ = np.zeros((n_words, n_hidden, 4))
+            self.word_pose_squares_ = np.zeros((n_words, n_hidden, 2))
+            self.word_motor_counts_ = np.zeros((n_words, n_hidden, N_MOTOR))
+        if z.shape[0] == 0:
+            return self
+        vision, motor = z[:, encoding.VISION_SLICE], z[:, encoding.MOTOR_SLICE]
+        cell = self._heard_words(z[:, encoding.LANGUAGE_SLICE]) * n_hidden + self._lower_winners(
+            vision, motor, 1.0
+        )
+        size = n_words * n_hidden
+
+        def add(target, weights=None):
+            target += np.bincount(cell, weights=weights, minlength=size).reshape(target.shape)
+
+        add(self.word_samples_)
+        pose = _pose_features(vision)
+        for i in range(4):
+            add(self.word_pose_sums_[..., i], pose[:, i])
+        for i in range(2):
+            add(self.word_pose_squares_[..., i], pose[:, i] ** 2)
+        directive = motor.argmax(axis=1)
+        for d in range(N_MOTOR):
+            add(self.word_motor_counts_[..., d], (directive == d).astype(float))
+        return self
+
+    @property
+    def has_word_statistics_(self) -> bool:
+        """Whether ``count_word_statistics`` has counted since the lower level last learned."""
+        return hasattr(self, "word_samples_")
+
+    def _pose_log_likelihoods(self, vision: np.ndarray, word_index: np.ndarray) -> np.ndarray:
+        """Returns (n, n_hidden): the log-likelihood of each sample's pose under each word-and-
+        winner component (a Gaussian with the counted mean and spread, each spread at least
+        ``pose_width_floor`` units, the heading's circular), plus the log of its sample count;
+        -inf for components with fewer than ``min_word_samples`` samples."""
+        samples = self.word_samples_
+        safe = np.maximum(samples, 1.0)
+        mean = self.word_pose_sums_ / safe[..., None]
+        var = self.word_pose_squares_ / safe[..., None] - mean[..., :2] ** 2
+        floor = float(self.pose_width_floor)
+        sd_xy = np.sqrt(np.maximum(var, floor**2))
+        resultant = np.clip(np.hypot(mean[..., 2], mean[..., 3]), 1e-6, 1.0)
+        to_units = N_PHI_UNITS / (2 * np.pi)
+        sd_phi = np.maximum(np.sqrt(-2.0 * np.log(resultant)) * to_units, floor)
+        mean_phi = np.arctan2(mean[..., 3], mean[..., 2]) * to_units
+        norm = np.log(safe) - np.log(sd_xy[..., 0] * sd_xy[..., 1] * sd_phi)
+        norm = np.where(samples >= self.min_word_samples, norm, -np.inf)
+        centres = encoding.vision_code_centres(vision)
+        w = word_index
+        half = N_PHI_UNITS / 2
+        dphi = (centres[:, 2, None] - mean_phi[w] + half) % N_PHI_UNITS - half
+        squared = (
+            ((centres[:, 0, None] - mean[w, :, 0]) / sd_xy[w, :, 0]) ** 2
+            + ((centres[:, 1, None] - mean[w, :, 1]) / sd_xy[w, :, 1]) ** 2
+            + (dphi / sd_phi[w]) ** 2
+        )
+        return norm[w] - 0.5 * squared
 
     def _heard_words(self, language: np.ndarray) -> np.ndarray:
         codes = encoding.encode_words(list(self.vocabulary))
@@ -412,7 +549,7 @@ class HierarchicalAssociator:
         unknown = sorted({w for w in names if w not in self.vocabulary})
         if unknown:
             raise ValueError(f"unknown words {unknown}; the network knows: {self.vocabulary}")
-        word_index = np.array([self.vocabulary.index(w) for w in names])
+        word_index = np.array([self.vocabulary.index(w) for w in names], dtype=np.int64)
         lower = self.lower_
         # Cosine between the vision code and each unit's vision weights: each unit's bottom-up
         # weights were normalised with the motor area present, so their vision parts differ in
@@ -420,11 +557,27 @@ class HierarchicalAssociator:
         # whose weights lie mostly on vision, whatever the pose.
         w_vision = lower.W_bu_[:, encoding.VISION_SLICE].astype(float)
         w_vision /= np.maximum(np.linalg.norm(w_vision, axis=1, keepdims=True), 1e-12)
-        lengths = np.linalg.norm(vision, axis=1, keepdims=True)
-        activation = (vision / np.maximum(lengths, 1e-12)) @ w_vision.T
-        activation += self.word_bias * np.log(self.word_likelihoods_())[word_index]
-        winners = activation.argmax(axis=1)
-        motor = lower._readout_tables()[1][winners] / self.motor_gain
+        log_links = self.word_bias * np.log(self.word_likelihoods_())
+        motor_td = lower._readout_tables()[1] / self.motor_gain
+        winners = np.empty(n, np.int64)
+        motor = np.empty((n, N_MOTOR))
+        for start in range(0, n, _PERFORM_CHUNK):  # bounded memory: (chunk, n_hidden) at a time
+            part = slice(start, min(start + _PERFORM_CHUNK, n))
+            v, w = vision[part], word_index[part]
+            lengths = np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
+            activation = (v / lengths) @ w_vision.T + log_links[w]
+            if not self.has_word_statistics_:
+                winners[part] = activation.argmax(axis=1)
+                motor[part] = motor_td[winners[part]]
+                continue
+            pose = self._pose_log_likelihoods(v, w)
+            counted = np.isfinite(pose).any(axis=1)  # the word has components to choose from
+            activation[counted] += self.pose_weight * pose[counted]
+            k = activation.argmax(axis=1)
+            winners[part] = k
+            counts = self.word_motor_counts_[w, k]
+            totals = counts.sum(axis=1, keepdims=True)
+            motor[part] = np.where(counted[:, None], counts / np.maximum(totals, 1.0), motor_td[k])
         best = motor.argmax(axis=1)
         return BatchPerformance(np.asarray(DIRECTIVES)[best], motor, winners)
 

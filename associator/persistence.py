@@ -47,6 +47,13 @@ _KEYS = (
     "rng_state",
     "metadata",
 )
+#: Optional entries of a hierarchical file: the word statistics, and the attributes they fill.
+_STATISTICS = (
+    ("word_samples", "word_samples_"),
+    ("word_pose_sums", "word_pose_sums_"),
+    ("word_pose_squares", "word_pose_squares_"),
+    ("word_motor_counts", "word_motor_counts_"),
+)
 _HIERARCHY_KEYS = (
     "hierarchy_params",
     "word_links",
@@ -73,6 +80,10 @@ def save(model, path, metadata: dict | None = None) -> str:
             "transition_counts": np.asarray(model.transition_counts_, dtype=float),
             "last_sample": np.array([model.last_word_, model.last_winner_], dtype=np.int64),
         }
+        if model.has_word_statistics_:
+            extra.update(
+                {key: np.asarray(getattr(model, attr), dtype=float) for key, attr in _STATISTICS}
+            )
         model = model.lower_
     params = model.get_params()
     state = model.rng_.bit_generator.state
@@ -119,6 +130,10 @@ def _read(path):
             if missing:
                 _fail(path, f"missing entries {missing}")
             data = {key: archive[key] for key in keys}
+            present = [key for key, _ in _STATISTICS if key in archive.files]
+            if present and len(present) != len(_STATISTICS):
+                _fail(path, f"word statistics incomplete: has only {present}")
+            data.update({key: archive[key] for key in present})
     except ValueError as error:
         if "not a valid associator file" in str(error):
             raise
@@ -242,4 +257,29 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
     model.transition_keys_ = np.array(keys)
     model.transition_counts_ = np.array(counts, dtype=float)
     model.last_word_, model.last_winner_ = int(last[0]), int(last[1])
+    if _STATISTICS[0][0] in data:
+        _word_statistics(path, model, data)
     return model
+
+
+def _word_statistics(path, model: HierarchicalAssociator, data) -> None:
+    """Checks and sets the optional word statistics (``count_word_statistics``)."""
+    n_words, n_hidden = len(model.vocabulary), model.lower_.n_hidden
+    shapes = {
+        "word_samples": (n_words, n_hidden),
+        "word_pose_sums": (n_words, n_hidden, 4),
+        "word_pose_squares": (n_words, n_hidden, 2),
+        "word_motor_counts": (n_words, n_hidden, 4),
+    }
+    for key, _ in _STATISTICS:
+        values = data[key]
+        if values.shape != shapes[key]:
+            _fail(path, f"{key} has shape {values.shape}, expected {shapes[key]}")
+        if not np.all(np.isfinite(values)):
+            _fail(path, f"{key} has non-finite values")
+        if key != "word_pose_sums" and np.any(values < 0):
+            _fail(path, f"{key} has negative values")
+    if not np.array_equal(data["word_motor_counts"].sum(axis=2), data["word_samples"]):
+        _fail(path, "word_motor_counts do not add up to word_samples")
+    for key, attr in _STATISTICS:
+        setattr(model, attr, np.array(data[key], dtype=float))

@@ -15,6 +15,7 @@ import numpy as np
 from tqdm import tqdm
 
 from associator import encoding, persistence
+from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from peoplebot_sim import directives
 from peoplebot_sim.streams import TeacherStream
@@ -93,7 +94,8 @@ def train(
 ):
     """Trains ``model`` (an ``Associator`` or a ``HierarchicalAssociator``) on ``stream``, resuming
     from ``checkpoint_path`` if it holds a partly trained network; saves the network there after
-    every chunk (atomically) and returns it."""
+    every chunk (atomically) and returns it. A ``HierarchicalAssociator`` then counts its word
+    statistics on the same stream (``count_word_statistics``) and is saved again."""
     checkpoint_path = pathlib.Path(checkpoint_path)
     if checkpoint_path.exists():
         saved = persistence.load(checkpoint_path)
@@ -115,6 +117,19 @@ def train(
         save_atomically(model, checkpoint_path)
         bar.update(stop - bar.n)
     bar.close()
+    if isinstance(model, HierarchicalAssociator) and not model.has_word_statistics_:
+        # The word layer's pose and motor statistics, counted with the trained lower level (all
+        # at once: an interrupted count starts again, it is a pure function of network and stream).
+        bar = tqdm(total=total, desc=f"{desc}: word statistics", unit="step", disable=not progress)
+        for start in range(0, total, chunk):
+            stop = min(start + chunk, total)
+            vision, language, motor, _ = encode_stream(
+                stream, encoder, motor_source, dt, start, stop
+            )
+            model.count_word_statistics(vision, language, motor)
+            bar.update(stop - start)
+        bar.close()
+        save_atomically(model, checkpoint_path)
     return model
 
 

@@ -40,6 +40,25 @@ def test_vision_round_trip():
     np.testing.assert_allclose(dphi, 0, atol=1e-6)
 
 
+def test_vision_code_centres_are_in_units_of_the_code_whatever_the_arena():
+    """The bump centres are the poses in units of each population's spacing: x over [0, 35], y
+    over [0, 35], phi over [0, 24) with 0 deg at unit 12; the same for a 4 m and a 6 m arena."""
+    rng = np.random.default_rng(1)
+    for half in (2.0, 3.0):
+        enc = VisionEncoder(half_side_m=half)
+        x, y, phi = (
+            rng.uniform(0, half, 200),
+            rng.uniform(-half, half, 200),
+            rng.uniform(-180, 180, 200),
+        )
+        centres = encoding.vision_code_centres(enc.encode_batch(x, y, phi))
+        np.testing.assert_allclose(centres[:, 0], x / half * 35, atol=1e-6)
+        np.testing.assert_allclose(centres[:, 1], (y + half) / (2 * half) * 35, atol=1e-6)
+        expected = ((phi + 180) / 15) % 24
+        np.testing.assert_allclose((centres[:, 2] - expected + 12) % 24 - 12, 0, atol=1e-6)
+        assert np.all((centres[:, 2] >= 0) & (centres[:, 2] < 24))
+
+
 def test_phi_is_circular():
     enc = VisionEncoder()
     np.testing.assert_allclose(enc.encode(1, 0, 180.0), enc.encode(1, 0, -180.0), atol=1e-12)

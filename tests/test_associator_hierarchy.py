@@ -1,11 +1,13 @@
 """Tests of the two-level associator (``associator.hierarchy``): learning on a synthetic teacher,
 the word links, chunking, persistence and bad input."""
 
+import copy
+
 import numpy as np
 import pytest
 
 from associator import persistence, synthetic
-from associator.encoding import DIRECTIVES, VISION_SLICE, WORDS
+from associator.encoding import DIRECTIVES, VISION_SLICE, WORDS, vision_code_centres
 from associator.hierarchy import HierarchicalAssociator, SequenceState
 from associator.network import Associator
 
@@ -26,6 +28,16 @@ def learned():
     flat = Associator(**PARAMS).fit(*train)
     test_stream = synthetic.teacher_stream(20_000, rng=2)
     return model, flat, test_stream, synthetic.encode_stream(test_stream)
+
+
+@pytest.fixture(scope="module")
+def counted(learned):
+    """A copy of the two-level network with its word statistics counted on its training stream
+    (the ``learned`` network itself keeps the read-out without them), and that stream."""
+    model = copy.deepcopy(learned[0])
+    train_stream = synthetic.teacher_stream(N_LEARN, rng=1)
+    train = synthetic.encode_stream(train_stream)
+    return model.count_word_statistics(*train[:3]), train_stream, train
 
 
 def test_recognition_and_performance_well_above_chance(learned):
@@ -172,6 +184,88 @@ def test_save_and_load_round_trip(learned, tmp_path):
         persistence.load(tmp_path / "bad.npz")
 
 
+def test_word_statistics_count_each_sample_at_its_recognition_winner(counted):
+    """Each training sample adds to the statistics of its heard word at its recognition winner:
+    the sample counts equal a histogram of (word, winner), the directive counts add up to them
+    and hold each sample's directive, and the pose sums are sums of the code's bump centres."""
+    model, stream, (vision, _, motor, _) = counted
+    winners = model.recognise_batch(vision, motor).winners
+    samples = np.zeros_like(model.word_samples_)
+    np.add.at(samples, (stream.word, winners), 1)
+    np.testing.assert_array_equal(model.word_samples_, samples)
+    np.testing.assert_array_equal(model.word_motor_counts_.sum(axis=2), samples)
+    directive_totals = model.word_motor_counts_.sum(axis=(0, 1))
+    np.testing.assert_array_equal(directive_totals, np.bincount(stream.directive, minlength=4))
+    centres = vision_code_centres(vision)
+    busiest = np.unravel_index(np.argsort(samples, axis=None)[-3:], samples.shape)
+    for w, k in zip(*busiest, strict=True):
+        mine = (stream.word == w) & (winners == k)
+        np.testing.assert_allclose(model.word_pose_sums_[w, k, :2], centres[mine, :2].sum(axis=0))
+        np.testing.assert_allclose(
+            model.word_pose_squares_[w, k], (centres[mine, :2] ** 2).sum(axis=0)
+        )
+
+
+def test_counted_statistics_improve_performance_and_give_the_words_directive(learned, counted):
+    """With the word statistics the performed directive is the winner's most frequent directive
+    under the word, and motor recall on held-out samples rises (measured balanced accuracy 0.83
+    without, 0.90 with)."""
+    plain_model, _, stream, (vision, _, _, _) = learned
+    model = counted[0]
+    words = [WORDS[i] for i in stream.word]
+
+    def recall(performed):
+        directives = np.array([DIRECTIVES.index(d) for d in performed.directives])
+        return balanced_accuracy(directives, stream.directive, 4)
+
+    with_statistics = model.perform_batch(vision, words)
+    without = plain_model.perform_batch(vision, words)
+    assert recall(with_statistics) > recall(without) + 0.03, (
+        recall(with_statistics),
+        recall(without),
+    )
+    counts = model.word_motor_counts_[stream.word, with_statistics.winners]
+    np.testing.assert_array_equal(
+        [DIRECTIVES.index(d) for d in with_statistics.directives], counts.argmax(axis=1)
+    )
+    np.testing.assert_allclose(with_statistics.motor, counts / counts.sum(axis=1, keepdims=True))
+    # Only components counted at least min_word_samples times under the word compete (a word
+    # with none falls back to the read-out without statistics).
+    strict = copy.deepcopy(model)
+    strict.min_word_samples = 400
+    winners = strict.perform_batch(vision[:2000], words[:2000]).winners
+    has_any = (model.word_samples_ >= 400).any(axis=1)[stream.word[:2000]]
+    assert has_any.sum() > 1000
+    assert np.all(model.word_samples_[stream.word[:2000], winners][has_any] >= 400)
+
+
+def test_word_statistics_are_dropped_by_learning_and_kept_by_saving(counted, tmp_path):
+    """Further learning changes the lower level, so it drops the statistics (performance then
+    falls back to the lower W_td); a saved file keeps them, and one whose directive counts do not
+    add up to its sample counts is refused."""
+    model, _, (vision, language, motor, _) = counted
+    path = persistence.save(model, tmp_path / "h.npz")
+    loaded = persistence.load(path)
+    assert loaded.has_word_statistics_
+    np.testing.assert_array_equal(loaded.word_pose_sums_, model.word_pose_sums_)
+    a, b = model.perform_batch(vision[:500], "pick"), loaded.perform_batch(vision[:500], "pick")
+    np.testing.assert_array_equal(a.winners, b.winners)
+    np.testing.assert_array_equal(a.motor, b.motor)
+    with np.load(path) as archive:
+        entries = {k: archive[k] for k in archive.files}
+    counts = entries["word_motor_counts"].copy()
+    counts[0, 0, 0] += 1
+    np.savez(tmp_path / "bad.npz", **{**entries, "word_motor_counts": counts})
+    with pytest.raises(ValueError, match="do not add up"):
+        persistence.load(tmp_path / "bad.npz")
+    np.savez(tmp_path / "bad.npz", **{k: v for k, v in entries.items() if k != "word_samples"})
+    with pytest.raises(ValueError, match="word statistics incomplete"):
+        persistence.load(tmp_path / "bad.npz")
+    learning_more = copy.deepcopy(model).partial_fit(vision[:10], language[:10], motor[:10])
+    assert not learning_more.has_word_statistics_
+    assert not learning_more.fit(vision[:10], language[:10], motor[:10]).has_word_statistics_
+
+
 def test_bad_input_raises(learned):
     model, _, _, (vision, _, motor, _) = learned
     with pytest.raises(ValueError, match="unknown words"):
@@ -182,6 +276,12 @@ def test_bad_input_raises(learned):
         HierarchicalAssociator(motor_gain=-1.0).fit(vision[:5], np.zeros((5, 80)), motor[:5])
     with pytest.raises(ValueError, match="not fitted"):
         HierarchicalAssociator().recognise_batch(vision[:1], motor[:1])
+    with pytest.raises(ValueError, match="not fitted"):
+        HierarchicalAssociator().count_word_statistics(vision[:1], np.zeros((1, 80)), motor[:1])
+    with pytest.raises(ValueError, match="min_word_samples must be a positive whole number"):
+        HierarchicalAssociator(min_word_samples=2.5).fit(vision[:5], np.zeros((5, 80)), motor[:5])
+    with pytest.raises(ValueError, match="pose_weight"):
+        HierarchicalAssociator(pose_weight=0.0).fit(vision[:5], np.zeros((5, 80)), motor[:5])
     with pytest.raises(ValueError, match="one True per vision sample"):
         model.recognise_sequence(vision[:3], motor[:3], seen=np.array([True, False, True]))
     with pytest.raises(ValueError, match="state.posterior"):
