@@ -310,17 +310,28 @@ class HierarchicalAssociator:
         )
         self.transition_keys_ = merged
 
-    def count_word_statistics(self, vision, language, motor) -> HierarchicalAssociator:
+    def count_word_statistics(
+        self, vision, language, motor, performed=None
+    ) -> HierarchicalAssociator:
         """Counts, with the lower level frozen, what the word layer needs to perform: for each
         heard word and lower winner (the recognition winner of vision and motor, as after
         training), the number of samples, the sums of the pose and of its squares (the vision
         code's bump centres, in units of the code; the heading as a unit vector) and the count of
-        each directive. Call it on the training stream once training is over, in pieces if need
-        be (the counts add up); ``partial_fit`` drops them, as the lower level then changes.
-        Shapes as for :meth:`partial_fit`. Returns self."""
+        each directive performed there. Call it on the training stream once training is over, in
+        pieces if need be (the counts add up); ``partial_fit`` drops them, as the lower level then
+        changes. Shapes as for :meth:`partial_fit`; ``performed`` (n, 4), the motor codes of what
+        was done at each sample when ``motor`` is not that (e.g. directives inferred from the
+        motion into each pose: the motion out of it is what was done there), default ``motor``.
+        Returns self."""
         self._check_fitted()
         self._validate_params()
         z = encoding.assemble(vision, language, motor)
+        performed = z[:, encoding.MOTOR_SLICE] if performed is None else performed
+        performed = encoding.check_codes(performed, N_MOTOR, "performed")
+        if performed.shape[0] != z.shape[0]:
+            raise ValueError(
+                f"performed must have one row per sample ({z.shape[0]}), got {performed.shape[0]}"
+            )
         n_words, n_hidden = len(self.vocabulary), self.lower_.n_hidden
         if not hasattr(self, "word_samples_"):
             self.word_samples_ = np.zeros((n_words, n_hidden))
@@ -344,7 +355,7 @@ class HierarchicalAssociator:
             add(self.word_pose_sums_[..., i], pose[:, i])
         for i in range(2):
             add(self.word_pose_squares_[..., i], pose[:, i] ** 2)
-        directive = motor.argmax(axis=1)
+        directive = performed.argmax(axis=1)
         for d in range(N_MOTOR):
             add(self.word_motor_counts_[..., d], (directive == d).astype(float))
         return self

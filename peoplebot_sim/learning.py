@@ -49,6 +49,20 @@ def inferred_directives(
     return np.where(valid[positions], index[positions], 0).astype(np.int8)
 
 
+def following_directives(stream: TeacherStream, dt: float, start: int, stop: int) -> np.ndarray:
+    """Returns the directive indices (stop - start,) inferred from the motion out of each pose of
+    rows ``start:stop`` (step t gets the motion from t to t+1; the stream's last step keeps the
+    motion into it): what the teacher did at each pose, which ``inferred_directives`` gives one
+    step late."""
+    n = len(stream)
+    lo, hi = max(start - 2, 0), min(stop + 1, n)  # two steps of history, as encode_stream
+    inferred = inferred_directives(stream.pose_world[lo:hi].astype(float), dt)
+    following = inferred[start - lo + 1 :]
+    if stop == n:  # no motion after the last step
+        following = np.concatenate([following, inferred[-1:]])
+    return following
+
+
 def encode_stream(
     stream: TeacherStream,
     encoder: encoding.VisionEncoder,
@@ -126,7 +140,12 @@ def train(
             vision, language, motor, _ = encode_stream(
                 stream, encoder, motor_source, dt, start, stop
             )
-            model.count_word_statistics(vision, language, motor)
+            performed = None
+            if motor_source == "vision":  # what was done at a pose: the motion out of it
+                performed = encoding.encode_motor_batch(
+                    following_directives(stream, dt, start, stop)
+                )
+            model.count_word_statistics(vision, language, motor, performed)
             bar.update(stop - start)
         bar.close()
         save_atomically(model, checkpoint_path)

@@ -206,6 +206,21 @@ def test_word_statistics_count_each_sample_at_its_recognition_winner(counted):
         )
 
 
+def test_word_statistics_count_what_was_performed_when_given(learned):
+    """With ``performed`` the directive counts hold those directives (e.g. the motion out of each
+    pose) while the winners, and so the sample counts, still come from the motor input."""
+    model = copy.deepcopy(learned[0])
+    vision, language, motor, _ = synthetic.encode_stream(synthetic.teacher_stream(3000, rng=5))
+    performed = np.roll(motor, -1, axis=0)
+    model.count_word_statistics(vision, language, motor, performed)
+    plain = copy.deepcopy(learned[0]).count_word_statistics(vision, language, motor)
+    np.testing.assert_array_equal(model.word_samples_, plain.word_samples_)
+    np.testing.assert_array_equal(model.word_motor_counts_.sum(axis=(0, 1)), performed.sum(axis=0))
+    assert not np.array_equal(model.word_motor_counts_, plain.word_motor_counts_)
+    with pytest.raises(ValueError, match="one row per sample"):
+        model.count_word_statistics(vision, language, motor, performed[:-1])
+
+
 def test_counted_statistics_improve_performance_and_give_the_words_directive(learned, counted):
     """With the word statistics the performed directive is the winner's most frequent directive
     under the word, and motor recall on held-out samples rises (measured balanced accuracy 0.83

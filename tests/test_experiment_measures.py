@@ -298,6 +298,32 @@ def test_inferred_directives_recover_the_commands_one_step_late():
     np.testing.assert_array_equal(inferred, expected)
 
 
+def test_following_directives_give_the_command_at_each_pose_in_any_chunks():
+    """The motion out of each pose is the command executed there: the commands themselves (the
+    last pose, with no motion after it, keeps the motion into it), whatever the chunks."""
+    from peoplebot_sim.streams import TeacherStream
+
+    commands = ["forward"] * 4 + ["turn_left"] * 3 + ["backward"] * 4 + ["turn_right"] * 3
+    poses = drive(commands)
+    n = len(poses)
+    stream = TeacherStream(
+        pose_world=poses.astype(np.float32),
+        pose_wall=np.zeros((n, 3), np.float32),
+        word=np.zeros(n, np.int8),
+        directive=np.zeros(n, np.int8),
+        motor_changed=np.zeros(n, bool),
+    )
+    expected = [directives.DIRECTIVES.index(c) for c in commands + commands[-1:]]
+    for chunk in (n, 5, 3):
+        got = np.concatenate(
+            [
+                learning.following_directives(stream, DT, a, min(a + chunk, n))
+                for a in range(0, n, chunk)
+            ]
+        )
+        np.testing.assert_array_equal(got, expected)
+
+
 def test_inferred_directives_hold_through_a_still_step_after_each_directive():
     for directive in directives.DIRECTIVES:
         inferred = learning.inferred_directives(drive([directive, directive, None, None]), DT)
