@@ -109,7 +109,9 @@ def train(
     """Trains ``model`` (an ``Associator`` or a ``HierarchicalAssociator``) on ``stream``, resuming
     from ``checkpoint_path`` if it holds a partly trained network; saves the network there after
     every chunk (atomically) and returns it. A ``HierarchicalAssociator`` then counts its word
-    statistics on the same stream (``count_word_statistics``) and is saved again."""
+    statistics on the same stream (``count_word_statistics``; with ``motor_source='vision'`` the
+    directives counted are those of the motion out of each pose, ``following_directives``) and is
+    saved again."""
     checkpoint_path = pathlib.Path(checkpoint_path)
     if checkpoint_path.exists():
         saved = persistence.load(checkpoint_path)
