@@ -61,7 +61,7 @@ from typing import NamedTuple
 import numpy as np
 
 from associator import encoding
-from associator.encoding import DIRECTIVES, N_MOTOR, N_VISION
+from associator.encoding import DIRECTIVES, N_MOTOR, N_PHI, N_VISION
 from associator.network import (
     Associator,
     BatchPerformance,
@@ -102,15 +102,13 @@ _LEARNED = (
 
 #: Samples performed at a time in ``perform_batch`` (its work arrays are chunk x n_hidden).
 _PERFORM_CHUNK = 4096
-#: Units of the heading's population code (360 deg around).
-N_PHI_UNITS = encoding.N_PHI
 
 
 def _pose_features(vision: np.ndarray) -> np.ndarray:
     """Returns (n, 4): the x and y bump centres of vision codes in units, and the heading's unit
     vector (cos, sin)."""
     centres = encoding.vision_code_centres(vision)
-    angle = centres[:, 2] * (2 * np.pi / N_PHI_UNITS)
+    angle = centres[:, 2] * (2 * np.pi / N_PHI)
     return np.stack([centres[:, 0], centres[:, 1], np.cos(angle), np.sin(angle)], axis=1)
 
 
@@ -377,15 +375,15 @@ class HierarchicalAssociator:
         floor = float(self.pose_width_floor)
         sd_xy = np.sqrt(np.maximum(var, floor**2))
         resultant = np.clip(np.hypot(mean[..., 2], mean[..., 3]), 1e-6, 1.0)
-        to_units = N_PHI_UNITS / (2 * np.pi)
+        to_units = N_PHI / (2 * np.pi)
         sd_phi = np.maximum(np.sqrt(-2.0 * np.log(resultant)) * to_units, floor)
         mean_phi = np.arctan2(mean[..., 3], mean[..., 2]) * to_units
         norm = np.log(safe) - np.log(sd_xy[..., 0] * sd_xy[..., 1] * sd_phi)
         norm = np.where(samples >= self.min_word_samples, norm, -np.inf)
         centres = encoding.vision_code_centres(vision)
         w = word_index
-        half = N_PHI_UNITS / 2
-        dphi = (centres[:, 2, None] - mean_phi[w] + half) % N_PHI_UNITS - half
+        half = N_PHI / 2
+        dphi = (centres[:, 2, None] - mean_phi[w] + half) % N_PHI - half
         squared = (
             ((centres[:, 0, None] - mean[w, :, 0]) / sd_xy[w, :, 0]) ** 2
             + ((centres[:, 1, None] - mean[w, :, 1]) / sd_xy[w, :, 1]) ** 2

@@ -13,6 +13,7 @@ import pytest
 from associator import encoding
 from peoplebot_sim import directives, learning, recognition
 from peoplebot_sim.performance import SuccessConfig, SuccessMonitor, dock_pose_at
+from peoplebot_sim.streams import TeacherStream
 
 DT = 0.1  # control step, s
 STEPS_60S = 600
@@ -301,8 +302,6 @@ def test_inferred_directives_recover_the_commands_one_step_late():
 def test_following_directives_give_the_command_at_each_pose_in_any_chunks():
     """The motion out of each pose is the command executed there: the commands themselves (the
     last pose, with no motion after it, keeps the motion into it), whatever the chunks."""
-    from peoplebot_sim.streams import TeacherStream
-
     commands = ["forward"] * 4 + ["turn_left"] * 3 + ["backward"] * 4 + ["turn_right"] * 3
     poses = drive(commands)
     n = len(poses)
