@@ -63,23 +63,23 @@ def _as_float_array(name: str, value) -> np.ndarray:
     return array
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, kw_only=True)
 class VisionEncoder:
     """Gaussian population codes of the teacher's wall-frame pose (96 units).
 
     Attributes:
-      half_side_m: distance in metres from the arena centre to each wall; x is encoded over
-        [0, half_side_m] and y over [-half_side_m, half_side_m]. Default 2.0 (a 4 m arena).
+      half_side_m: distance in metres from the arena centre to each wall (required: the world
+        defines the arena); x is encoded over [0, half_side_m] and y over
+        [-half_side_m, half_side_m].
       sigma_units: standard deviation of each Gaussian bump, in units (spacing of neighbouring
-        units): 1 unit is 5.7 cm of x, 11.4 cm of y and 15 deg of phi in the default arena. The
-        paper gives no width; one unit is the narrowest bump that still decodes exactly from three
-        neighbours and keeps neighbouring poses overlapping.
+        units: half_side_m / 35 of x, half_side_m / 17.5 of y, 15 deg of phi). Default 1, the
+        narrowest bump that still decodes exactly from three neighbours.
       truncate_units: activations further than this many units from the bump centre are set to 0
-        (3 units: the largest dropped value is exp(-8) = 3.4e-4 at 4 units). The code is then sparse
-        (at most 7 active units per coordinate), which the fast training loop exploits.
+        (default 3: the largest dropped value is exp(-8) = 3.4e-4 at 4 units), so at most 7
+        units per coordinate are active.
     """
 
-    half_side_m: float = 2.0
+    half_side_m: float
     sigma_units: float = 1.0
     truncate_units: float = 3.0
 
@@ -90,9 +90,9 @@ class VisionEncoder:
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")
 
     @classmethod
-    def from_arena_side(cls, side_m: float, **kwargs) -> VisionEncoder:
-        """Returns an encoder for a square arena of inner side ``side_m`` metres."""
-        return cls(half_side_m=0.5 * float(side_m), **kwargs)
+    def from_arena_side(cls, side_m: float) -> VisionEncoder:
+        """Returns an encoder, default widths, for a square arena of inner side ``side_m`` metres."""
+        return cls(half_side_m=0.5 * float(side_m))
 
     @property
     def x_centres_m(self) -> np.ndarray:
@@ -480,19 +480,27 @@ def motor_changed(motor_codes) -> np.ndarray:
 # The full input
 
 
-def check_codes(codes, width: int, name: str) -> np.ndarray:
-    """Returns ``codes`` as a float (n, width) array, raising ValueError for bad shape or values."""
+def check_inputs(values, width: int, name: str) -> np.ndarray:
+    """Returns ``values`` as a float (n, width) array, raising ValueError for a bad shape or
+    non-finite values; any scale is allowed (an area weighted by a gain)."""
     try:
-        array = np.asarray(codes, dtype=float)
+        array = np.asarray(values, dtype=float)
     except (TypeError, ValueError) as error:
         raise ValueError(
-            f"{name} codes must be numeric arrays, got {type(codes).__name__}"
+            f"{name} codes must be numeric arrays, got {type(values).__name__}"
         ) from error
     if array.ndim != 2 or array.shape[1] != width:
         raise ValueError(f"{name} codes must have shape (n, {width}), got {array.shape}")
     bad = ~np.isfinite(array)
     if bad.any():
         raise ValueError(f"{name} codes must be finite, got {float(array[bad][0])!r}")
+    return array
+
+
+def check_codes(codes, width: int, name: str) -> np.ndarray:
+    """Returns ``codes`` as a float (n, width) array, raising ValueError for bad shape or values
+    (codes lie in [0, 1])."""
+    array = check_inputs(codes, width, name)
     bad = (array < 0) | (array > 1)
     if bad.any():
         raise ValueError(

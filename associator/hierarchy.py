@@ -1,57 +1,10 @@
 """A two-level associator: the paper's network on vision and motor, and a word layer above it.
 
-Why: in the paper's flat network (``associator.network``) each hidden unit learns vision, motor
-and language together, so the map divides itself into word regions that each hold a copy of the
-arena. Recognition omits language, and the winner is then chosen by vision and motor alone among
-all regions: near walls, where 'go' and 'pick' look alike, it often falls in the wrong word's
-region. The authors' follow-up MirrorBot models (Wermter, Weber, Elshaw et al., "A mirror neuron
-inspired hierarchical network for action selection", 2005) put a lower area on vision and motor
-and associate its hidden code with language in a higher area. This module is the smallest such
-hierarchy:
-
-- Lower level: the paper's network and learning rule unchanged (:class:`~associator.network.
-  Associator`), trained with the language area silent, so the whole map quantises vision and
-  motor, and recognition's winner is found exactly as it was learned. The motor area is
-  multiplied by ``motor_gain`` (training and read-outs alike): one active motor unit against
-  about twenty active vision units barely moves the winner otherwise.
-- Word layer: one unit per vocabulary word, linked to the lower winners by Hebbian counting:
-  each wake step adds one to the link between the heard word and the lower winner. Each word
-  unit's links are normalised to sum to one, so a word's activation for a lower winner ``k`` is
-  the learned ``p(k | word)``. (Weighting the links by the paper's wake rate, with its fivefold
-  boost on motor changes, lowered 'pick' recognition by 1.4 points in our measurement.)
-
-Read-outs:
-
-- Recognition (vision and motor given): the lower winner ``k``; the word with the largest
-  ``p(k | word)`` (a likelihood read-out: a frequent word does not win by frequency alone).
-- Performance (vision and word given, motor omitted): the word biases the lower level's
-  competition top-down: the winner maximises ``cos(v, W_bu,k[vision]) + word_bias * log p(k |
-  word) + pose_weight * log N(pose | word, k)``. The cosine is between the vision code and the
-  vision part of the unit's bottom-up weights (the motor area, absent, is left out of both), so
-  among units that match what the student sees, those the word was heard at win. The last term
-  comes from statistics the word layer counts once the lower level has learned
-  (:meth:`HierarchicalAssociator.count_word_statistics`, a pass over the training stream with
-  the lower level frozen): for each word and lower winner, how many samples it won, their pose
-  (the vision code's bump centres: mean and spread, the heading's circular) and their
-  directives. ``log N`` is the log-likelihood of the pose under that word-and-unit Gaussian plus
-  the log of its count, and only components with at least ``min_word_samples`` samples compete.
-  The lower weights are smooth (each unit learnt with its map neighbours), which carries 'go'
-  across poses the teacher never showed; the counted components are sharp, which 'pick' needs
-  to dock. The output is the winner's directive counts under the word, ``p(directive | k,
-  word)``, as graded activations, the most frequent the directive (a unit won under two words,
-  e.g. at the table where 'pick' settles and 'lift' backs away, gives each word its own
-  directive). Without counted statistics the output is the motor area reconstructed through the
-  lower ``W_td`` at the winner of the first two terms (divided by ``motor_gain``).
-- Recognition over time (:meth:`HierarchicalAssociator.recognise_sequence`): the word layer also
-  counts, per heard word, which lower winner follows which (``p(k_t | k_(t-1), word)``, backed off
-  to ``p(k_t | word)`` with weight ``transition_prior``), and which word follows which
-  (``p(word_t | word_(t-1))``, ``word_transition_floor`` added to every count). Recognition then
-  carries a belief over the words from step to step, a causal forward filter: the belief is
-  propagated through the word transitions and multiplied by the evidence of the two latest lower
-  winners. A behaviour is recognised by how the observed robot moves through the map and by the
-  order in which behaviours follow each other, not by one snapshot: on the seed-0 streams of
-  ``peoplebot reproduce`` this took 'go' / 'pick' / 'lift' from 87.6 / 90.3 / 99.4 % (one step)
-  to 98.3 / 97.9 / 99.7 % (``docs/associator.md``).
+The lower level is the paper's :class:`~associator.network.Associator`, trained with the language
+area silent and the motor area weighted by ``motor_gain``; the word layer links each vocabulary word
+to the lower winners by Hebbian counts, and counts word and winner transitions for recognition over
+time. ``docs/associator.md`` (the hierarchical associator) explains the read-outs, why the
+hierarchy, and the measurements behind the defaults.
 """
 
 from __future__ import annotations
@@ -69,6 +22,8 @@ from associator.network import (
     Performance,
     Recognition,
     check_motor_changed,
+    check_motor_weight,
+    word_indices,
 )
 
 #: Hyper-parameters of the word layer and the motor gain; everything else is the lower network's.
@@ -139,48 +94,44 @@ class SequenceRecognition(NamedTuple):
 class HierarchicalAssociator:
     """The two-level associator, in the scikit-learn shape of :class:`Associator`.
 
+    Learning: each sample trains the lower network on vision and ``motor_gain`` x motor (language
+    silent) and adds one to the link between its heard word and its wake winner ``k``, so a word
+    unit's normalised links are ``p(k | word)``. Recognition takes the word under which the lower
+    winner is most likely; performance lets the word bias the lower competition.
+
     Parameters
     ----------
+    lower : Associator or None
+        The lower network's hyper-parameters and ``rng``, as an unfitted :class:`Associator`
+        (``fit`` trains a fresh one with them and leaves this object as it is). None (default):
+        ``Associator()``, the paper's defaults.
     motor_gain : float
-        Factor on the motor area at the lower level, in training and read-outs. Default 3: on the
-        seed-0 streams recognition went from 87.2 / 92.8 / 99.8 % (go / pick / lift, gain 1) to
-        89.3 / 92.3 / 100 % (``docs/associator.md``).
+        Factor on the motor area at the lower level, in training and read-outs (default 3).
     link_floor : float
         Added to every word-to-winner link (a count) before normalising, so that a winner never
-        seen with a word is unlikely for it, not impossible.
+        seen with a word is unlikely for it, not impossible (default 1e-3).
     word_bias : float
-        Weight of ``log p(k | word)`` against the vision cosine in performance. Default 0.05:
-        student trials on the seed-0 network of ``peoplebot reproduce`` (30 per row) succeeded
-        go / pick / lift 30 / 12 / 30 at 0.05 and 26 / 16 / 30 at 0.1 driving with the directive,
-        30 / 19 / 30 at 0.05 with the graded drive (``docs/associator.md``).
+        Weight of ``log p(k | word)`` against the vision cosine in performance (default 0.05).
     transition_prior : float
         Weight of ``p(k | word)`` added to the counts of lower-winner transitions in
-        ``p(k_t | k_(t-1), word)`` (a back-off for transitions seldom or never seen). Recognition
-        over time on the seed-0 streams: 98.1 / 97.8 / 99.7 % at 0.1, 98.3 / 97.9 / 99.7 % at 1,
-        98.6 / 97.6 / 99.6 % at 10 (``docs/associator.md``): not sensitive; 1 is the default.
+        ``p(k_t | k_(t-1), word)``, a back-off for transitions seldom or never seen (default 1).
     word_transition_floor : float
-        Added to every count of word-to-word transitions before normalising, so that a
-        transition never seen (e.g. 'pick' back to 'go') stays possible (0.1 to 100 changed
-        recognition by at most 0.2 points on the seed-0 streams).
+        Added to every count of word-to-word transitions before normalising, so that a transition
+        never seen (e.g. 'pick' back to 'go') stays possible (default 1).
     pose_weight : float
-        Weight of the counted word-and-unit pose log-likelihood in performance. Default 0.03:
-        on the seed-0 network of ``peoplebot reproduce`` (50 trials per word) 'go' / 'pick' /
-        'lift' succeeded 47 / 45 / 50 at 0.03 and 43 / 43 / 50 at 0.05; 0.1 lets the sharp
-        components dominate and 'go' fell to 24/30 in scratch trials (``docs/associator.md``).
+        Weight of the counted word-and-unit pose log-likelihood in performance (default 0.03).
     pose_width_floor : float
         Least spread of a counted component along each pose coordinate, in units of the vision
-        code (0.5: 2.9 cm of x, 5.7 cm of y, 7.5 deg of phi in the default arena).
+        code (default 0.5).
     min_word_samples : int
         Components counted fewer times than this under their word do not compete in performance
-        (their statistics are noise).
-    **lower_params
-        Hyper-parameters of the lower network (:class:`Associator`; ``vocabulary`` and ``rng``
-        included), the paper's defaults otherwise.
+        (default 20).
     """
 
     def __init__(
         self,
         *,
+        lower: Associator | None = None,
         motor_gain: float = 3.0,
         link_floor: float = 1e-3,
         word_bias: float = 0.05,
@@ -189,8 +140,8 @@ class HierarchicalAssociator:
         pose_weight: float = 0.03,
         pose_width_floor: float = 0.5,
         min_word_samples: int = 20,
-        **lower_params,
     ):
+        self.lower = lower
         self.motor_gain = motor_gain
         self.link_floor = link_floor
         self.word_bias = word_bias
@@ -199,11 +150,28 @@ class HierarchicalAssociator:
         self.pose_weight = pose_weight
         self.pose_width_floor = pose_width_floor
         self.min_word_samples = min_word_samples
-        self.lower_params = dict(lower_params)
+
+    def _lower_estimator(self) -> Associator:
+        """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
+        if self.lower is None:
+            return Associator()
+        if not isinstance(self.lower, Associator):
+            raise ValueError(
+                f"lower must be an Associator or None, got {type(self.lower).__name__}"
+            )
+        return self.lower
+
+    def _fresh_lower(self) -> Associator:
+        """Returns an unfitted Associator with ``lower``'s hyper-parameters and ``rng`` (the same
+        seed or generator object), as scikit-learn's ``clone`` would."""
+        template = self._lower_estimator()
+        params = {name: getattr(template, name) for name in template.get_params()}
+        return Associator(**params, rng=template.rng)
 
     def get_params(self) -> dict:
-        """Returns the hyper-parameters (the lower network's included, ``rng`` excluded)."""
-        params = Associator(**self.lower_params).get_params()
+        """Returns the hyper-parameters as one flat dict: the lower network's (``rng`` excluded)
+        and the hierarchy's own (``OWN_PARAMS``)."""
+        params = self._lower_estimator().get_params()
         params.update(
             motor_gain=float(self.motor_gain),
             link_floor=float(self.link_floor),
@@ -218,9 +186,12 @@ class HierarchicalAssociator:
 
     @property
     def vocabulary(self) -> tuple[str, ...]:
-        return tuple(self.lower_params.get("vocabulary", encoding.WORDS))
+        """The words the network knows: the lower network's ``vocabulary``."""
+        return tuple(self._lower_estimator().vocabulary)
 
-    def _validate_params(self) -> None:
+    def validate_params(self) -> None:
+        """Raises ValueError naming the first bad hyper-parameter, the lower network's included."""
+        self._lower_estimator().validate_params()
         for name in OWN_PARAMS:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
@@ -254,13 +225,13 @@ class HierarchicalAssociator:
         """Trains both levels on ``n`` consecutive samples (shapes as for
         :meth:`Associator.partial_fit`); the heard word of each sample is its language code's
         nearest vocabulary word."""
-        self._validate_params()
+        self.validate_params()
         z = encoding.assemble(vision, language, motor)
         n = z.shape[0]
         changed = check_motor_changed(motor_changed, n)
         if not hasattr(self, "lower_"):
             n_words = len(self.vocabulary)
-            self.lower_ = Associator(**self.lower_params)
+            self.lower_ = self._fresh_lower()
             self.word_links_ = np.zeros((n_words, self.lower_.n_hidden))
             self.word_transitions_ = np.zeros((n_words, n_words))
             self.transition_keys_ = np.zeros(0, np.int64)
@@ -273,8 +244,7 @@ class HierarchicalAssociator:
         words = self._heard_words(z[:, encoding.LANGUAGE_SLICE])
         z[:, encoding.LANGUAGE_SLICE] = 0.0  # the lower level never hears language
         z[:, encoding.MOTOR_SLICE] *= self.motor_gain
-        winners = np.empty(n, np.int64)  # each sample's wake winner, for the word links
-        self.lower_._learn(z, changed, winners)
+        winners = self.lower_.learn_inputs(z, changed)  # each sample's wake winner
         np.add.at(self.word_links_, (words, winners), 1.0)
         # Transitions from the previous sample (the last of the previous call included).
         previous_words = np.concatenate([[self.last_word_], words[:-1]])
@@ -322,7 +292,7 @@ class HierarchicalAssociator:
         motion into each pose: the motion out of it is what was done there), default ``motor``.
         Returns self."""
         self._check_fitted()
-        self._validate_params()
+        self.validate_params()
         z = encoding.assemble(vision, language, motor)
         performed = z[:, encoding.MOTOR_SLICE] if performed is None else performed
         performed = encoding.check_codes(performed, N_MOTOR, "performed")
@@ -411,11 +381,11 @@ class HierarchicalAssociator:
         counts = self.word_transitions_ + self.word_transition_floor
         return counts / counts.sum(axis=1, keepdims=True)
 
-    def _lower_winners(self, vision, motor, motor_gain: float) -> np.ndarray:
-        """Returns the lower winners of vision (n, 96) and motor (n, 4) codes, language silent."""
+    def _lower_winners(self, vision, motor, motor_weight: float) -> np.ndarray:
+        """Returns the lower winners of vision (n, 96) and motor (n, 4) codes, language silent,
+        the motor area weighted by ``motor_gain`` x ``motor_weight``."""
         self._check_fitted()
-        if not (np.isfinite(motor_gain) and motor_gain > 0):
-            raise ValueError(f"motor_gain must be a positive number, got {motor_gain!r}")
+        check_motor_weight(motor_weight)
         vision = encoding.check_codes(vision, N_VISION, "vision")
         motor = encoding.check_codes(motor, N_MOTOR, "motor")
         if vision.shape[0] != motor.shape[0]:
@@ -423,7 +393,7 @@ class HierarchicalAssociator:
                 f"vision and motor must have the same number of samples, got "
                 f"{vision.shape[0]} and {motor.shape[0]}"
             )
-        return self.lower_._winners(vision, None, motor * (self.motor_gain * motor_gain))
+        return self.lower_.winners(vision, motor=motor * (self.motor_gain * motor_weight))
 
     def _sequence_evidence(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
         """Returns ``p(k_t | k_(t-1), word)`` for winners ``current`` (n,) after ``previous`` (n,),
@@ -457,22 +427,23 @@ class HierarchicalAssociator:
         self,
         vision,
         motor,
-        motor_gain: float = 1.0,
+        motor_weight: float = 1.0,
         seen=None,
         state: SequenceState | None = None,
     ) -> SequenceRecognition:
-        """Recognises ``n`` consecutive samples over time (see the module notes): a belief over
-        the words carried from step to step.
+        """Recognises ``n`` consecutive samples over time: a belief over the words carried from
+        step to step, a causal forward filter through ``p(word_t | word_(t-1))`` and the evidence
+        ``p(k_t | k_(t-1), word)`` of the lower winners (backed off to ``p(k_t | word)``).
 
         Args:
           vision, motor: (m, 96) and (m, 4) codes of the samples that were seen, in order.
-          motor_gain: as for :meth:`recognise_batch`.
+          motor_weight: as for :meth:`recognise_batch`.
           seen: (n,) bool, which of the ``n`` consecutive steps were seen (``m`` of them); on a
             step not seen the belief only follows the word transitions. Default: all seen.
           state: where a previous call ended (its ``state``), to continue a stream in pieces;
             default: a uniform belief and no previous winner.
         """
-        winners_seen = self._lower_winners(vision, motor, motor_gain)
+        winners_seen = self._lower_winners(vision, motor, motor_weight)
         m = len(winners_seen)
         seen = np.ones(m, bool) if seen is None else np.asarray(seen)
         if seen.ndim != 1 or seen.dtype != bool or int(seen.sum()) != m:
@@ -526,27 +497,32 @@ class HierarchicalAssociator:
             )
         return SequenceState(posterior, int(last))
 
-    def recognise_batch(self, vision, motor, motor_gain: float = 1.0) -> BatchRecognition:
+    def recognise_batch(self, vision, motor, motor_weight: float = 1.0) -> BatchRecognition:
         """Recognises ``n`` samples from vision (n, 96) and motor (n, 4) codes; ``scores`` are
         ``log p(winner | word)`` per vocabulary word, ``winners`` the lower winners.
 
-        ``motor_gain`` weights the motor area further in the read-out, on top of ``motor_gain`` of
-        the hyper-parameters (1: none), as :meth:`Associator.recognise_batch` does."""
-        winners = self._lower_winners(vision, motor, motor_gain)
+        ``motor_weight`` is the read-out's weight on the motor area in the bottom-up pass, on top
+        of the hyper-parameter ``motor_gain`` (1: the read-out the lower level learned with)."""
+        winners = self._lower_winners(vision, motor, motor_weight)
         scores = np.log(self.word_likelihoods_()).T[winners]
         words = np.asarray(self.vocabulary)[np.argmax(scores, axis=1)]
         return BatchRecognition(words, scores, winners)
 
-    def recognise(self, vision, motor, motor_gain: float = 1.0) -> Recognition:
+    def recognise(self, vision, motor, motor_weight: float = 1.0) -> Recognition:
         """Recognises one sample; see :meth:`recognise_batch` (``hidden`` is the lower r^c)."""
-        batch = self.recognise_batch(np.atleast_2d(vision), np.atleast_2d(motor), motor_gain)
+        batch = self.recognise_batch(np.atleast_2d(vision), np.atleast_2d(motor), motor_weight)
         return Recognition(
             str(batch.words[0]), batch.scores[0], self.lower_.hidden_code(batch.winners[0])
         )
 
     def perform_batch(self, vision, words) -> BatchPerformance:
         """Chooses motor directives for ``n`` samples from vision (n, 96) and words (one word for
-        all, or a sequence of ``n`` vocabulary words); see the module notes."""
+        all, or a sequence of ``n`` vocabulary words; ValueError naming any other).
+
+        The winner maximises ``cos(v, W_bu,k[vision]) + word_bias * log p(k | word)``, plus
+        ``pose_weight * log N(pose | word, k)`` once ``count_word_statistics`` has counted; the
+        output is then ``p(directive | k, word)``, else the lower level's motor area reconstructed
+        at the winner (divided by ``motor_gain``)."""
         self._check_fitted()
         vision = encoding.check_codes(vision, N_VISION, "vision")
         n = vision.shape[0]
@@ -555,19 +531,16 @@ class HierarchicalAssociator:
             raise ValueError(
                 f"vision and words must have the same number of samples, got {n} and {len(names)}"
             )
-        unknown = sorted({w for w in names if w not in self.vocabulary})
-        if unknown:
-            raise ValueError(f"unknown words {unknown}; the network knows: {self.vocabulary}")
-        word_index = np.array([self.vocabulary.index(w) for w in names], dtype=np.int64)
+        word_index = word_indices(names, self.vocabulary)
         lower = self.lower_
         # Cosine between the vision code and each unit's vision weights: each unit's bottom-up
         # weights were normalised with the motor area present, so their vision parts differ in
-        # length (0.4-0.9 on the seed-0 network) and a plain product would favour a few units
-        # whose weights lie mostly on vision, whatever the pose.
+        # length and a plain product would favour a few units whose weights lie mostly on vision,
+        # whatever the pose.
         w_vision = lower.W_bu_[:, encoding.VISION_SLICE].astype(float)
         w_vision /= np.maximum(np.linalg.norm(w_vision, axis=1, keepdims=True), 1e-12)
         log_links = self.word_bias * np.log(self.word_likelihoods_())
-        motor_td = lower._readout_tables()[1] / self.motor_gain
+        motor_td = lower.readout_tables().motor / self.motor_gain
         winners = np.empty(n, np.int64)
         motor = np.empty((n, N_MOTOR))
         for start in range(0, n, _PERFORM_CHUNK):  # bounded memory: (chunk, n_hidden) at a time

@@ -74,6 +74,26 @@ class BatchPerformance(NamedTuple):
     winners: np.ndarray
 
 
+class ReadoutTables(NamedTuple):
+    """What the network reads out when hidden unit k wins (units numbered row-major), read-only.
+
+    Attributes:
+      language: the language area reconstructed through W_td from unit k's competitive code r^c,
+        shape (n_hidden, 80).
+      motor: the motor area reconstructed likewise, shape (n_hidden, 4).
+      scores: cosine similarity of each ``language`` row with each vocabulary word's code, shape
+        (n_hidden, n_words), in ``vocabulary`` order.
+    """
+
+    language: np.ndarray
+    motor: np.ndarray
+    scores: np.ndarray
+
+
+#: Samples whose winners ``Associator.winners`` finds at a time (its work array is chunk x n_hidden).
+_WINNER_CHUNK = 32768
+
+
 class Associator:
     """The associator network, in the scikit-learn shape.
 
@@ -89,9 +109,7 @@ class Associator:
         Factor on ``eta`` for samples whose active motor unit changed (paper: 5).
     envelope_sigma : float
         Standard deviation in grid units of the Gaussian envelope of the competitive code, in wake
-        and sleep alike. Not given in the paper; 1.0 keeps neighbouring units correlated while the
-        3 x 16 x 48 map still has room for three word regions, and is the width with which the
-        self-organising sleep sign was checked.
+        and sleep alike (not given in the paper; default 1.0).
     envelope_cutoff : float
         The envelope is zero beyond ``ceil(envelope_cutoff * envelope_sigma)`` units along either
         grid axis (a square window; 3 -> 7 x 7 units for sigma 1). The largest value dropped is
@@ -103,7 +121,7 @@ class Associator:
         so chunked training equals one call. After it, rates are zero.
     sleep_sign : {"self_organising", "printed"}
         ``"self_organising"``: dW_bu = epsilon (z^s - w) r~^c, moving weights towards the dream
-        (default, see the package notes for the evidence); ``"printed"``: the paper's printed
+        (default; ``docs/associator.md`` gives the evidence); ``"printed"``: the paper's printed
         epsilon (w - z^s) r~^c.
     sleeps_per_wake : int
         Sleep phases after each wake phase (the paper alternates; default 1).
@@ -111,9 +129,10 @@ class Associator:
         W_td starts uniform in [0, init_scale); W_bu starts uniform in [0, 1) with unit-length rows.
         Small top-down weights let the first wake phases, not the initial noise, shape the map.
     vocabulary : tuple of str
-        Words whose codes recognition compares with (default ``WORDS``).
+        The words the network knows: recognition compares with their codes, performance accepts
+        only them (default ``WORDS``).
     dtype : {"float32", "float64"}
-        Precision of the weights. float32 (default) is twice as fast; float64 is for checks.
+        Precision of the weights: float32 (default, faster) or float64 (for checks).
     rng : None, int or numpy.random.Generator
         Source of the initial weights and of the sleep phases' random hidden positions.
     """
@@ -172,7 +191,8 @@ class Associator:
             "dtype": str(self.dtype),
         }
 
-    def _validate_params(self) -> None:
+    def validate_params(self) -> None:
+        """Raises ValueError naming the first bad hyper-parameter and what is allowed."""
         shape = self.hidden_shape
         if (
             not isinstance(shape, (tuple, list))
@@ -229,9 +249,63 @@ class Associator:
         if not hasattr(self, "_w_bu"):
             raise ValueError("this Associator is not fitted yet; call fit or partial_fit first")
 
+    @classmethod
+    def from_state(cls, params: dict, W_bu, W_td, n_steps: int, generator) -> Associator:
+        """Returns a fitted network from its learned state (the loading hook of
+        ``associator.persistence``).
+
+        Parameters
+        ----------
+        params : dict
+            Hyper-parameters as ``get_params`` returns them (``rng`` excluded).
+        W_bu : array, shape (n_hidden, 180)
+            Bottom-up weights in the dtype of ``params``, finite and >= 0, hidden units row-major.
+        W_td : array, shape (180, n_hidden)
+            Top-down weights, likewise.
+        n_steps : int
+            Training samples seen, >= 0 (the rate schedule continues from it).
+        generator : numpy.random.Generator
+            The generator, in the state training continues from.
+
+        Raises ValueError for hyper-parameters or arrays that do not fit together.
+        """
+        try:
+            model = cls(**params)
+            model.validate_params()
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"bad hyper-parameters ({error})") from None
+        rows, cols = model.hidden_shape
+        n_hidden = model.n_hidden
+        dtype = np.dtype(model.dtype)
+        w_bu, w_td = np.asarray(W_bu), np.asarray(W_td)
+        if w_bu.shape != (n_hidden, N_INPUT) or w_td.shape != (N_INPUT, n_hidden):
+            raise ValueError(
+                f"W_bu {w_bu.shape} and W_td {w_td.shape} do not match hidden_shape "
+                f"{model.hidden_shape}: expected ({n_hidden}, {N_INPUT}) and "
+                f"({N_INPUT}, {n_hidden})"
+            )
+        if w_bu.dtype != dtype or w_td.dtype != dtype:
+            raise ValueError(f"weights are {w_bu.dtype}/{w_td.dtype}, hyper-parameters say {dtype}")
+        for name, w in (("W_bu", w_bu), ("W_td", w_td)):
+            if not np.all(np.isfinite(w)) or np.any(w < 0):
+                raise ValueError(f"{name} has negative or non-finite values")
+        if not (isinstance(n_steps, (int, np.integer)) and n_steps >= 0):
+            raise ValueError(f"n_steps must be an int >= 0, got {n_steps!r}")
+        if not isinstance(generator, np.random.Generator):
+            raise ValueError(
+                f"generator must be a numpy.random.Generator, got {type(generator).__name__}"
+            )
+        model._set_state(
+            w_bu.reshape(rows, cols, N_INPUT),
+            w_td.T.reshape(rows, cols, N_INPUT),
+            n_steps,
+            generator,
+        )
+        return model
+
     def _initialise(self) -> None:
         """Draws the initial weights and computes the vocabulary codes and envelope tables."""
-        self._validate_params()
+        self.validate_params()
         self.rng_ = np.random.default_rng(self.rng)
         rows, cols = self.hidden_shape
         dtype = np.dtype(self.dtype)
@@ -241,12 +315,12 @@ class Associator:
         self._set_state(w_bu.astype(dtype), w_td_t.astype(dtype), 0, None)
 
     def _set_state(self, w_bu3, w_td_t3, n_steps, rng_state) -> None:
-        """Installs learned state (also used by persistence).
+        """Installs learned state (from ``_initialise`` and ``from_state``).
 
         ``w_bu3`` and ``w_td_t3`` are (rows, cols, 180) in grid order; they are stored with the
         hidden units in the order of ``_fast.Layout`` (envelope windows contiguous).
         """
-        self._validate_params()
+        self.validate_params()
         self._build_windows()
         order = self._layout.grid_of_storage
         self._w_bu = np.ascontiguousarray(w_bu3.reshape(self.n_hidden, N_INPUT)[order])
@@ -316,18 +390,35 @@ class Associator:
         -------
         self
         """
-        z = encoding.assemble(vision, language, motor)
-        return self._learn(z, check_motor_changed(motor_changed, z.shape[0]))
+        self.learn_inputs(encoding.assemble(vision, language, motor), motor_changed)
+        return self
 
-    def _learn(self, z: np.ndarray, changed: np.ndarray, winners=None) -> Associator:
-        """Trains on checked inputs ``z`` (n, 180) and flags ``changed`` (n,); ``winners``, if
-        given, receives each wake's winner (see ``_train``). Returns self."""
+    def learn_inputs(self, z, motor_changed=None) -> np.ndarray:
+        """Trains on ``n`` consecutive full inputs, one wake and ``sleeps_per_wake`` sleep phases
+        each, and returns each wake phase's winner.
+
+        Parameters
+        ----------
+        z : array, shape (n, 180)
+            Full inputs [vision, language, motor] (``encoding.assemble``), each area weighted as
+            the caller wants (e.g. language silent, motor times a gain); finite.
+        motor_changed : bool array, shape (n,), or None
+            As for ``partial_fit``.
+
+        Returns
+        -------
+        winners : int64 array, shape (n,)
+            The winning hidden unit of each wake phase (row-major grid index).
+        """
+        z = encoding.check_inputs(z, N_INPUT, "input")
+        changed = check_motor_changed(motor_changed, z.shape[0])
         if not hasattr(self, "_w_bu"):
             self._initialise()
-        self._validate_params()
+        self.validate_params()
+        winners = np.empty(z.shape[0], dtype=np.int64)
         self._train(z, changed, winners)
         self._tables = None
-        return self
+        return winners
 
     def _train(self, z: np.ndarray, changed: np.ndarray, winners=None) -> None:
         """The modified wake-sleep loop, touching only the units under the truncated envelope.
@@ -428,13 +519,14 @@ class Associator:
     # ------------------------------------------------------------------------------------------
     # Read-outs
 
-    def _readout_tables(self):
-        """Returns per-winner language (768, 80), motor (768, 4) and scores (768, n_words).
+    def readout_tables(self) -> ReadoutTables:
+        """Returns what the network reads out at each winning unit (cached until it learns).
 
         With a winner-take-all hidden code, every read-out depends on the input only through the
         winning unit k: the reconstruction is W_td envelope(k). Tabulating it per unit makes batch
         read-outs one matrix product (for the winners) and a lookup.
         """
+        self._check_fitted()
         if self._tables is None:
             envelope = self._envelope.astype(float)
             w_td = self.W_td_.astype(float)
@@ -443,26 +535,41 @@ class Associator:
             codes = self.vocabulary_codes_
             norms = np.linalg.norm(language, axis=1, keepdims=True) * np.linalg.norm(codes, axis=1)
             scores = (language @ codes.T) / np.maximum(norms, 1e-300)
-            self._tables = (language, motor, scores)
+            for table in (language, motor, scores):
+                table.setflags(write=False)
+            self._tables = ReadoutTables(language, motor, scores)
         return self._tables
 
-    def _winners(
-        self,
-        vision: np.ndarray,
-        language: np.ndarray | None,
-        motor: np.ndarray | None,
-        chunk: int = 32768,
-    ) -> np.ndarray:
-        """Returns argmax_j (W_bu z)_j for each sample, shape (n,), with omitted areas silent."""
-        w_bu = self.W_bu_
+    def winners(self, vision, language=None, motor=None) -> np.ndarray:
+        """Returns the winning hidden unit argmax_j (W_bu z)_j of each sample, omitted areas silent.
+
+        Parameters
+        ----------
+        vision : array, shape (n, 96)
+        language : array, shape (n, 80), or None
+        motor : array, shape (n, 4), or None
+            Each area's activations, weighted as the caller wants (any finite scale).
+
+        Returns
+        -------
+        winners : int64 array, shape (n,)
+            Row-major grid indices (``hidden_code`` turns them into r^c).
+        """
+        self._check_fitted()
+        vision = encoding.check_inputs(vision, N_VISION, "vision")
         n = vision.shape[0]
+        if language is not None:
+            language = _same_samples(encoding.check_inputs(language, N_LANGUAGE, "language"), n)
+        if motor is not None:
+            motor = _same_samples(encoding.check_inputs(motor, N_MOTOR, "motor"), n)
+        w_bu = self.W_bu_
         winners = np.empty(n, dtype=np.int64)
         dtype = w_bu.dtype
         w_vision = np.ascontiguousarray(w_bu[:, VISION_SLICE].T)
         w_language = np.ascontiguousarray(w_bu[:, LANGUAGE_SLICE].T)
         w_motor = np.ascontiguousarray(w_bu[:, MOTOR_SLICE].T)
-        for start in range(0, n, chunk):
-            stop = min(start + chunk, n)
+        for start in range(0, n, _WINNER_CHUNK):
+            stop = min(start + _WINNER_CHUNK, n)
             r = vision[start:stop].astype(dtype) @ w_vision
             if language is not None:
                 r += language[start:stop].astype(dtype) @ w_language
@@ -471,62 +578,61 @@ class Associator:
             winners[start:stop] = np.argmax(r, axis=1)
         return winners
 
-    def recognise_batch(self, vision, motor, motor_gain: float = 1.0) -> BatchRecognition:
+    def recognise_batch(self, vision, motor, motor_weight: float = 1.0) -> BatchRecognition:
         """Recognises the behaviour of ``n`` samples from vision (n, 96) and motor (n, 4) codes.
 
         The language area is omitted (silent); the language area reconstructed through W_td from the
         competitive hidden code is compared with each vocabulary word's code by cosine similarity.
-
-        ``motor_gain`` weights the motor area in the bottom-up pass that picks the winner (1: the
-        paper's read-out). With one active motor unit against about twenty active vision units the
-        motor cue barely moves the winner; a gain of 3 lets it (see the README's fidelity notes).
+        ``motor_weight`` is the read-out's weight on the motor area in the bottom-up pass that picks
+        the winner (1: the paper's read-out).
         """
         self._check_fitted()
         vision = encoding.check_codes(vision, N_VISION, "vision")
         motor = encoding.check_codes(motor, N_MOTOR, "motor")
-        if not (np.isfinite(motor_gain) and motor_gain > 0):
-            raise ValueError(f"motor_gain must be a positive number, got {motor_gain!r}")
-        if motor_gain != 1.0:
-            motor = motor * motor_gain
+        check_motor_weight(motor_weight)
+        if motor_weight != 1.0:
+            motor = motor * motor_weight
         if vision.shape[0] != motor.shape[0]:
             raise ValueError(
                 f"vision and motor must have the same number of samples, got "
                 f"{vision.shape[0]} and {motor.shape[0]}"
             )
-        winners = self._winners(vision, None, motor)
-        scores = self._readout_tables()[2][winners]
+        winners = self.winners(vision, motor=motor)
+        scores = self.readout_tables().scores[winners]
         words = np.asarray(self.vocabulary)[np.argmax(scores, axis=1)]
         return BatchRecognition(words, scores, winners)
 
-    def recognise(self, vision, motor, motor_gain: float = 1.0) -> Recognition:
+    def recognise(self, vision, motor, motor_weight: float = 1.0) -> Recognition:
         """Recognises one sample from vision (96,) and motor (4,) codes; see ``recognise_batch``."""
         vision, motor = _single(vision, N_VISION, "vision"), _single(motor, N_MOTOR, "motor")
-        batch = self.recognise_batch(vision, motor, motor_gain)
+        batch = self.recognise_batch(vision, motor, motor_weight)
         return Recognition(str(batch.words[0]), batch.scores[0], self.hidden_code(batch.winners[0]))
 
     def perform_batch(self, vision, words) -> BatchPerformance:
         """Chooses motor directives for ``n`` samples from vision (n, 96) and words.
 
-        ``words`` is one word for all samples, a sequence of ``n`` words, or language codes (n, 80).
-        The motor area is omitted; its reconstruction through W_td gives graded activations (n, 4)
-        and the directive with the strongest one.
+        ``words`` is one vocabulary word for all samples, a sequence of ``n`` vocabulary words
+        (ValueError naming any other), or language codes (n, 80). The motor area is omitted; its
+        reconstruction through W_td gives graded activations (n, 4) and the directive with the
+        strongest one.
         """
         self._check_fitted()
         vision = encoding.check_codes(vision, N_VISION, "vision")
         n = vision.shape[0]
         if isinstance(words, str):
-            language = np.broadcast_to(encoding.encode_word(words), (n, N_LANGUAGE))
+            index = word_indices([words], self.vocabulary)[0]
+            language = np.broadcast_to(self.vocabulary_codes_[index], (n, N_LANGUAGE))
         elif isinstance(words, np.ndarray) and words.dtype.kind == "f":
             language = encoding.check_codes(words, N_LANGUAGE, "language")
         else:
-            language = encoding.encode_words(list(words))
+            language = self.vocabulary_codes_[word_indices(list(words), self.vocabulary)]
         if language.shape[0] != n:
             raise ValueError(
                 f"vision and words must have the same number of samples, got {n} "
                 f"and {language.shape[0]}"
             )
-        winners = self._winners(vision, language, None)
-        motor = self._readout_tables()[1][winners]
+        winners = self.winners(vision, language=language)
+        motor = self.readout_tables().motor[winners]
         directives = np.asarray(DIRECTIVES)[np.argmax(motor, axis=1)]
         return BatchPerformance(directives, motor, winners)
 
@@ -553,6 +659,36 @@ def check_motor_changed(motor_changed, n: int) -> np.ndarray:
             f"{changed.dtype} {changed.shape}"
         )
     return changed
+
+
+def check_motor_weight(motor_weight) -> None:
+    """Raises ValueError unless ``motor_weight`` (a read-out's weight on the motor area) is a
+    positive finite number."""
+    try:
+        value = float(motor_weight)
+    except (TypeError, ValueError):
+        value = float("nan")
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"motor_weight must be a positive finite number, got {motor_weight!r}")
+
+
+def word_indices(words, vocabulary) -> np.ndarray:
+    """Returns the index in ``vocabulary`` of each of ``n`` words, shape (n,) int64; raises
+    ValueError naming the unknown words and the vocabulary."""
+    index = {word: i for i, word in enumerate(vocabulary)}
+    unknown = sorted({repr(word) for word in words if word not in index})
+    if unknown:
+        raise ValueError(
+            f"unknown word{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; the network's "
+            f"vocabulary: {tuple(vocabulary)}"
+        )
+    return np.array([index[word] for word in words], dtype=np.int64)
+
+
+def _same_samples(area: np.ndarray, n: int) -> np.ndarray:
+    if area.shape[0] != n:
+        raise ValueError(f"an area has {area.shape[0]} samples where vision has {n}")
+    return area
 
 
 def _single(code, width: int, name: str) -> np.ndarray:

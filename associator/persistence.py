@@ -11,12 +11,14 @@ File layout (format version 1), every entry a plain numpy array:
 
 A :class:`~associator.hierarchy.HierarchicalAssociator` is stored the same way with ``format``
 ``"hierarchical_associator"``: the entries above hold its lower network, and these its own state:
-``hierarchy_params`` (JSON of its own hyper-parameters: ``motor_gain``, ``link_floor``,
-``word_bias``, ``transition_prior``, ``word_transition_floor``), ``word_links`` (n_words,
-n_hidden), ``word_transitions`` (n_words, n_words), the sparse lower-winner transitions
+``hierarchy_params`` (JSON of its own hyper-parameters, ``hierarchy.OWN_PARAMS``), ``word_links``
+(n_words, n_hidden), ``word_transitions`` (n_words, n_words), the sparse lower-winner transitions
 ``transition_keys`` (m,) int64 (index in a flattened (n_words, n_hidden, n_hidden) table, strictly
 increasing) and ``transition_counts`` (m,), and ``last_sample`` ([word, winner] of the last
-training sample, -1 before any), so that training resumes exactly.
+training sample, -1 before any), so that training resumes exactly; optionally the word statistics
+of ``count_word_statistics``: ``word_samples`` (n_words, n_hidden), ``word_pose_sums`` (n_words,
+n_hidden, 4), ``word_pose_squares`` (n_words, n_hidden, 2), ``word_motor_counts`` (n_words,
+n_hidden, 4).
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import zipfile
 
 import numpy as np
 
-from associator.encoding import N_INPUT, N_LANGUAGE
+from associator.encoding import N_LANGUAGE
 from associator.hierarchy import OWN_PARAMS as HIERARCHY_PARAMS
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
@@ -67,7 +69,8 @@ _HIERARCHY_KEYS = (
 def save(model, path, metadata: dict | None = None) -> str:
     """Writes a fitted model (an ``Associator`` or a ``HierarchicalAssociator``) to ``path``
     (``.npz``) and returns the path as a string."""
-    model._check_fitted()
+    if not hasattr(model, "n_steps_"):
+        raise ValueError(f"this {type(model).__name__} is not fitted yet; call fit first")
     path = os.fspath(path)
     extra = {}
     if isinstance(model, HierarchicalAssociator):
@@ -156,26 +159,6 @@ def _read(path):
         _fail(path, f"bad JSON entry ({error})")
     params["hidden_shape"] = tuple(params["hidden_shape"])
     params["vocabulary"] = tuple(params["vocabulary"])
-    try:
-        model = Associator(**params)
-        model._validate_params()
-    except (TypeError, ValueError) as error:
-        _fail(path, f"bad hyper-parameters ({error})")
-    rows, cols = model.hidden_shape
-    n_hidden = rows * cols
-    dtype = np.dtype(model.dtype)
-    w_bu, w_td = data["W_bu"], data["W_td"]
-    if w_bu.shape != (n_hidden, N_INPUT) or w_td.shape != (N_INPUT, n_hidden):
-        _fail(
-            path,
-            f"W_bu {w_bu.shape} and W_td {w_td.shape} do not match hidden_shape "
-            f"{model.hidden_shape}: expected ({n_hidden}, {N_INPUT}) and ({N_INPUT}, {n_hidden})",
-        )
-    if w_bu.dtype != dtype or w_td.dtype != dtype:
-        _fail(path, f"weights are {w_bu.dtype}/{w_td.dtype}, hyper-parameters say {dtype}")
-    for name, w in (("W_bu", w_bu), ("W_td", w_td)):
-        if not np.all(np.isfinite(w)) or np.any(w < 0):
-            _fail(path, f"{name} has negative or non-finite values")
     if state.get("bit_generator") not in _BIT_GENERATORS:
         _fail(
             path,
@@ -186,12 +169,12 @@ def _read(path):
         generator.bit_generator.state = state
     except (TypeError, ValueError, KeyError) as error:
         _fail(path, f"bad rng state ({error})")
-    n_steps = int(data["n_steps"])
-    if n_steps < 0:
-        _fail(path, f"n_steps {n_steps} is negative")
-    model._set_state(
-        w_bu.reshape(rows, cols, N_INPUT), w_td.T.reshape(rows, cols, N_INPUT), n_steps, generator
-    )
+    try:
+        model = Associator.from_state(
+            params, data["W_bu"], data["W_td"], int(data["n_steps"]), generator
+        )
+    except ValueError as error:
+        _fail(path, str(error))
     codes = data["vocabulary_codes"]
     if codes.shape != (len(model.vocabulary), N_LANGUAGE) or not np.array_equal(
         codes, model.vocabulary_codes_
@@ -205,8 +188,9 @@ def _read(path):
 def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
     try:
         own = json.loads(str(data["hierarchy_params"]))
-        model = HierarchicalAssociator(**own, **lower.get_params())
-        model._validate_params()
+        unfitted_lower = Associator(**lower.get_params())
+        model = HierarchicalAssociator(lower=unfitted_lower, **own)
+        model.validate_params()
     except (json.JSONDecodeError, TypeError, ValueError) as error:
         _fail(path, f"bad hierarchy parameters ({error})")
     links = data["word_links"]

@@ -25,7 +25,7 @@ _GO, _PICK, _LIFT = range(3)
 class Stream(NamedTuple):
     """A teacher stream of ``n`` steps: wall-frame ``x``, ``y`` (m), ``phi`` (deg), shape (n,) each;
     ``directive`` (n,) indices into ``DIRECTIVES``; ``word`` (n,) indices into ``WORDS``;
-    ``motor_changed`` (n,) bool."""
+    ``motor_changed`` (n,) bool; ``arena_side_m`` the inner side of the square arena, metres."""
 
     x: np.ndarray
     y: np.ndarray
@@ -33,6 +33,7 @@ class Stream(NamedTuple):
     directive: np.ndarray
     word: np.ndarray
     motor_changed: np.ndarray
+    arena_side_m: float
 
 
 def _wall_frame(px: float, py: float, yaw_deg: float, half: float):
@@ -130,12 +131,15 @@ def teacher_stream(
         directive=directive,
         word=out[:, 4].astype(np.int64),
         motor_changed=changed,
+        arena_side_m=float(arena_side_m),
     )
 
 
 def encode_stream(stream: Stream, vision_encoder: encoding.VisionEncoder | None = None):
-    """Returns ``(vision (n, 96), language (n, 80), motor (n, 4), motor_changed (n,))``."""
-    vision_encoder = vision_encoder or encoding.VisionEncoder()
+    """Returns ``(vision (n, 96), language (n, 80), motor (n, 4), motor_changed (n,))``; the vision
+    encoder defaults to one for the stream's arena."""
+    if vision_encoder is None:
+        vision_encoder = encoding.VisionEncoder.from_arena_side(stream.arena_side_m)
     vision = vision_encoder.encode_batch(stream.x, stream.y, stream.phi)
     word_codes = np.stack([encoding.encode_word(w) for w in encoding.WORDS])
     language = word_codes[stream.word]

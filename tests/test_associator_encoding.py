@@ -15,7 +15,7 @@ def test_layout_constants():
 
 
 def test_vision_units_at_the_documented_places():
-    enc = VisionEncoder()
+    enc = VisionEncoder(half_side_m=2.0)
     at_wall = enc.encode(0.0, 0.0, 0.0)
     assert np.argmax(at_wall[encoding.X_SLICE]) == 0
     assert np.argmax(enc.encode(2.0, 0.0, 0.0)[encoding.X_SLICE]) == 35
@@ -28,7 +28,7 @@ def test_vision_units_at_the_documented_places():
 
 
 def test_vision_round_trip():
-    enc = VisionEncoder()
+    enc = VisionEncoder(half_side_m=2.0)
     rng = np.random.default_rng(0)
     x = rng.uniform(0, 2, 500)
     y = rng.uniform(-2, 2, 500)
@@ -60,7 +60,7 @@ def test_vision_code_centres_are_in_units_of_the_code_whatever_the_arena():
 
 
 def test_phi_is_circular():
-    enc = VisionEncoder()
+    enc = VisionEncoder(half_side_m=2.0)
     np.testing.assert_allclose(enc.encode(1, 0, 180.0), enc.encode(1, 0, -180.0), atol=1e-12)
     near_plus, near_minus = enc.encode(1, 0, 179.0), enc.encode(1, 0, -179.0)
     phi = encoding.PHI_SLICE
@@ -73,7 +73,7 @@ def test_arena_sets_the_ranges():
     assert enc.half_side_m == 3.0
     assert np.argmax(enc.encode(3.0, 0, 0)[encoding.X_SLICE]) == 35
     with pytest.raises(ValueError, match=r"x = 2.5 .*allowed: \[0.0, 2.0\]"):
-        VisionEncoder().encode(2.5, 0, 0)
+        VisionEncoder(half_side_m=2.0).encode(2.5, 0, 0)
 
 
 @pytest.mark.parametrize(
@@ -88,16 +88,28 @@ def test_arena_sets_the_ranges():
 )
 def test_vision_bad_input(args, match):
     with pytest.raises(ValueError, match=match):
-        VisionEncoder().encode(*args)
+        VisionEncoder(half_side_m=2.0).encode(*args)
 
 
 def test_vision_clip_and_shapes():
-    enc = VisionEncoder()
+    enc = VisionEncoder(half_side_m=2.0)
     np.testing.assert_array_equal(enc.encode(-0.1, 3, 0, clip=True), enc.encode(0, 2, 0))
     with pytest.raises(ValueError, match="one shape"):
         enc.encode_batch([1, 1], [0], [0])
     with pytest.raises(ValueError, match="positive"):
         VisionEncoder(half_side_m=0)
+
+
+def test_the_arena_size_is_required_and_checked():
+    """The encoder has no arena of its own: ``half_side_m`` is a required keyword, a positive
+    finite number of metres."""
+    with pytest.raises(TypeError, match="half_side_m"):
+        VisionEncoder()
+    with pytest.raises(TypeError):
+        VisionEncoder(2.0)  # keyword only
+    for bad in (-1.0, np.inf, np.nan, "2"):
+        with pytest.raises(ValueError, match="half_side_m must be a positive finite number"):
+            VisionEncoder(half_side_m=bad)
 
 
 def test_phoneme_table():
@@ -164,7 +176,7 @@ def test_motor():
 
 
 def test_assemble_order_and_checks():
-    vision = VisionEncoder().encode_batch([0.5], [0.0], [10.0])
+    vision = VisionEncoder(half_side_m=2.0).encode_batch([0.5], [0.0], [10.0])
     language = encoding.encode_words(["pick"])
     motor = encoding.encode_motor_batch(["backward"])
     z = encoding.assemble(vision, language, motor)

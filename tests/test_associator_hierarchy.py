@@ -2,13 +2,14 @@
 the word links, chunking, persistence and bad input."""
 
 import copy
+import json
 
 import numpy as np
 import pytest
 
-from associator import persistence, synthetic
+from associator import encoding, persistence, synthetic
 from associator.encoding import DIRECTIVES, VISION_SLICE, WORDS, vision_code_centres
-from associator.hierarchy import HierarchicalAssociator, SequenceState
+from associator.hierarchy import OWN_PARAMS, HierarchicalAssociator, SequenceState
 from associator.network import Associator
 
 N_LEARN = 30_000
@@ -24,7 +25,7 @@ def learned():
     """The two-level network and the paper's flat one trained on the same synthetic teacher, and
     a held-out stream from another seed."""
     train = synthetic.encode_stream(synthetic.teacher_stream(N_LEARN, rng=1))
-    model = HierarchicalAssociator(**PARAMS).fit(*train)
+    model = HierarchicalAssociator(lower=Associator(**PARAMS)).fit(*train)
     flat = Associator(**PARAMS).fit(*train)
     test_stream = synthetic.teacher_stream(20_000, rng=2)
     return model, flat, test_stream, synthetic.encode_stream(test_stream)
@@ -143,8 +144,9 @@ def test_recognition_over_time_in_pieces_equals_one_call(learned):
 
 def test_any_split_into_calls_gives_the_same_network():
     stream = synthetic.encode_stream(synthetic.teacher_stream(3000, rng=3))
-    whole = HierarchicalAssociator(**{**PARAMS, "n_steps_total": 3000}).fit(*stream)
-    pieces = HierarchicalAssociator(**{**PARAMS, "n_steps_total": 3000})
+    whole = HierarchicalAssociator(lower=Associator(**{**PARAMS, "n_steps_total": 3000}))
+    whole.fit(*stream)
+    pieces = HierarchicalAssociator(lower=Associator(**{**PARAMS, "n_steps_total": 3000}))
     for lo, hi in ((0, 137), (137, 1000), (1000, 3000)):
         pieces.partial_fit(*(a[lo:hi] for a in stream))
     for name in ("word_links_", "word_transitions_", "transition_keys_", "transition_counts_"):
@@ -283,7 +285,7 @@ def test_word_statistics_are_dropped_by_learning_and_kept_by_saving(counted, tmp
 
 def test_bad_input_raises(learned):
     model, _, _, (vision, _, motor, _) = learned
-    with pytest.raises(ValueError, match="unknown words"):
+    with pytest.raises(ValueError, match="unknown word 'jump'; the network's vocabulary"):
         model.perform_batch(vision[:2], "jump")
     with pytest.raises(ValueError, match="same number of samples"):
         model.recognise_batch(vision[:3], motor[:2])
@@ -305,3 +307,137 @@ def test_bad_input_raises(learned):
         model.recognise_sequence(
             vision[:3], motor[:3], state=SequenceState(np.full(3, 1 / 3), 10_000)
         )
+
+
+def _small_stream(n: int = 600):
+    return synthetic.encode_stream(synthetic.teacher_stream(n, rng=4))
+
+
+def _lower_input(vision, motor, motor_gain: float) -> np.ndarray:
+    """Returns the lower level's training input (n, 180): language silent, motor x gain."""
+    return np.concatenate([vision, np.zeros((len(vision), 80)), motor_gain * motor], axis=1)
+
+
+def test_partial_fit_trains_the_lower_network_through_learn_inputs():
+    """Training the hierarchy is the lower network's ``learn_inputs`` on the input with language
+    silent and motor times ``motor_gain``, the word links counting its returned winners; the
+    recognition winners are the lower network's ``winners`` with the same weighting."""
+    vision, language, motor, changed = _small_stream()
+    params = dict(hidden_shape=(6, 12), n_steps_total=600, rng=2)
+    model = HierarchicalAssociator(lower=Associator(**params), motor_gain=2.5)
+    model.fit(vision, language, motor, changed)
+    lower = Associator(**params)
+    winners = lower.learn_inputs(_lower_input(vision, motor, 2.5), changed)
+    np.testing.assert_array_equal(model.lower_.W_bu_, lower.W_bu_)
+    np.testing.assert_array_equal(model.lower_.W_td_, lower.W_td_)
+    assert winners.shape == (600,) and winners.dtype == np.int64
+    links = np.zeros((3, lower.n_hidden))
+    np.add.at(links, (np.argmax(language @ encoding.encode_words(WORDS).T, axis=1), winners), 1)
+    np.testing.assert_array_equal(model.word_links_, links)
+    np.testing.assert_array_equal(
+        model.recognise_batch(vision, motor, motor_weight=1.5).winners,
+        lower.winners(vision, motor=motor * (2.5 * 1.5)),
+    )
+    tables = lower.readout_tables()
+    performed = model.perform_batch(vision, "go")
+    np.testing.assert_array_equal(performed.motor, tables.motor[performed.winners] / 2.5)
+
+
+def test_lower_estimator_params_round_trip_and_files_keep_their_layout(tmp_path):
+    """``get_params`` is the flat dict it always was (the lower network's merged with the
+    hierarchy's own); a saved file holds the same entries and JSON keys as before and loads back
+    to the same parameters."""
+    lower = Associator(hidden_shape=(6, 12), n_steps_total=600, rng=0)
+    model = HierarchicalAssociator(lower=lower, word_bias=0.1)
+    params = model.get_params()
+    expected = {**HierarchicalAssociator().get_params(), **lower.get_params()}
+    expected["word_bias"] = 0.1
+    assert params == expected
+    assert set(params) == set(Associator().get_params()) | set(OWN_PARAMS)
+    assert HierarchicalAssociator().get_params() == {
+        **Associator().get_params(),
+        "motor_gain": 3.0,
+        "link_floor": 1e-3,
+        "word_bias": 0.05,
+        "transition_prior": 1.0,
+        "word_transition_floor": 1.0,
+        "pose_weight": 0.03,
+        "pose_width_floor": 0.5,
+        "min_word_samples": 20,
+    }
+    assert model.vocabulary == WORDS
+    model.fit(*_small_stream())
+    path = persistence.save(model, tmp_path / "h.npz")
+    with np.load(path) as archive:
+        assert archive.files == [
+            "format",
+            "format_version",
+            "params",
+            "vocabulary_codes",
+            "W_bu",
+            "W_td",
+            "n_steps",
+            "rng_state",
+            "metadata",
+            "hierarchy_params",
+            "word_links",
+            "word_transitions",
+            "transition_keys",
+            "transition_counts",
+            "last_sample",
+        ]
+        assert int(archive["format_version"]) == 1
+        assert json.loads(str(archive["params"])).keys() == Associator().get_params().keys()
+        own = json.loads(str(archive["hierarchy_params"]))
+        assert list(own) == list(OWN_PARAMS) and own["word_bias"] == 0.1
+    loaded = persistence.load(path)
+    assert loaded.get_params() == params
+    assert isinstance(loaded.lower, Associator) and loaded.lower is not loaded.lower_
+    np.testing.assert_array_equal(loaded.lower_.W_td_, model.lower_.W_td_)
+
+
+def test_fit_leaves_the_users_lower_estimator_as_it_is():
+    """``fit`` trains a fresh network with the given estimator's parameters and seed: the user's
+    object stays unfitted and unchanged, and a second fit starts from the same seed."""
+    stream = _small_stream()
+    lower = Associator(hidden_shape=(6, 12), n_steps_total=600, rng=5)
+    before = dict(vars(lower))
+    model = HierarchicalAssociator(lower=lower).fit(*stream)
+    assert vars(lower) == before and not hasattr(lower, "W_bu_")
+    assert model.lower is lower and model.lower_ is not lower
+    first = model.lower_.W_bu_
+    np.testing.assert_array_equal(model.fit(*stream).lower_.W_bu_, first)
+    flat = Associator(hidden_shape=(6, 12), n_steps_total=600, rng=5)
+    flat.learn_inputs(_lower_input(stream[0], stream[2], 3.0), stream[3])
+    np.testing.assert_array_equal(first, flat.W_bu_)
+
+
+def test_constructor_takes_named_keywords_only():
+    with pytest.raises(TypeError):
+        HierarchicalAssociator(hidden_shape=(6, 12))  # the lower network's: pass lower=...
+    with pytest.raises(TypeError):
+        HierarchicalAssociator(rng=0)
+    with pytest.raises(TypeError):
+        HierarchicalAssociator(Associator())  # keyword only
+    with pytest.raises(ValueError, match="lower must be an Associator or None, got dict"):
+        HierarchicalAssociator(lower={"hidden_shape": (6, 12)}).get_params()
+
+
+def test_the_read_out_weight_is_motor_weight(learned):
+    """The read-out's weight on the motor area is ``motor_weight`` (``motor_gain`` is the
+    hyper-parameter); the old keyword is refused."""
+    model, _, _, (vision, _, motor, _) = learned
+    weighted = model.recognise_batch(vision[:300], motor[:300], motor_weight=2.0)
+    np.testing.assert_array_equal(
+        weighted.winners, model.lower_.winners(vision[:300], motor=motor[:300] * 6.0)
+    )
+    sequence = model.recognise_sequence(vision[:300], motor[:300], motor_weight=2.0)
+    np.testing.assert_array_equal(sequence.winners, weighted.winners)
+    assert model.recognise(vision[0], motor[0], motor_weight=2.0).word in WORDS
+    for method in (model.recognise_batch, model.recognise_sequence):
+        with pytest.raises(TypeError, match="motor_gain"):
+            method(vision[:3], motor[:3], motor_gain=2.0)
+    with pytest.raises(TypeError, match="motor_gain"):
+        model.recognise(vision[0], motor[0], motor_gain=2.0)
+    with pytest.raises(ValueError, match="motor_weight must be a positive finite number"):
+        model.recognise_batch(vision[:3], motor[:3], motor_weight=0.0)

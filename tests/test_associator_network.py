@@ -8,7 +8,7 @@ import pytest
 
 from associator import encoding, figures, persistence, synthetic
 from associator.encoding import DIRECTIVES, WORDS
-from associator.network import Associator
+from associator.network import Associator, ReadoutTables
 
 N_LEARN = 30_000
 LEARN_PARAMS = dict(hidden_shape=(8, 24), n_steps_total=N_LEARN, rng=0)
@@ -123,8 +123,12 @@ def test_single_and_batch_read_outs_agree(learned):
     np.testing.assert_allclose(batch.motor[5], activations)
     by_code = model.perform_batch(vision[:20], np.tile(encoding.encode_word("pick"), (20, 1)))
     np.testing.assert_array_equal(by_code.winners, batch.winners)
-    # Any word of up to four phonemes can be an instruction.
-    assert model.perform(vision[0], "stop").directive in DIRECTIVES
+    # An instruction is a word of the network's vocabulary, whichever (up to four phonemes).
+    with pytest.raises(ValueError, match="unknown word 'stop'"):
+        model.perform(vision[0], "stop")
+    stop = Associator(vocabulary=WORDS + ("stop",), hidden_shape=(6, 12), rng=0)
+    stop.fit(vision[:10], language[:10], motor[:10])
+    assert stop.perform(vision[0], "stop").directive in DIRECTIVES
 
 
 def test_save_load_round_trip(learned, tmp_path):
@@ -236,6 +240,142 @@ def test_figures(learned, tmp_path):
     assert len(units) == 4 and all(codes[:, units[3]] == 1)
     for i in range(3):
         assert codes[i, units[i]] == 1
+
+
+def test_learn_inputs_is_partial_fit_on_the_assembled_input(small_stream):
+    """``partial_fit`` is ``learn_inputs`` on ``encoding.assemble``'s input; once the schedule has
+    reached zero the weights stay and its winners are the ones ``winners`` finds for them."""
+    vision, language, motor, changed = small_stream
+    params = dict(hidden_shape=(6, 12), n_steps_total=400, dtype="float64", rng=3)
+    fitted = Associator(**params).partial_fit(vision, language, motor, changed)
+    model = Associator(**params)
+    z = encoding.assemble(vision, language, motor)
+    winners = model.learn_inputs(z[:400], changed[:400])
+    assert winners.shape == (400,) and winners.dtype == np.int64
+    assert 0 <= winners.min() and winners.max() < model.n_hidden
+    w_bu = model.W_bu_
+    frozen = model.learn_inputs(z[400:], changed[400:])
+    np.testing.assert_array_equal(model.W_bu_, w_bu)
+    np.testing.assert_array_equal(model.W_bu_, fitted.W_bu_)
+    np.testing.assert_array_equal(model.W_td_, fitted.W_td_)
+    np.testing.assert_array_equal(frozen, model.winners(vision[400:], language[400:], motor[400:]))
+    np.testing.assert_array_equal(frozen, np.argmax(z[400:] @ w_bu.T, axis=1))
+    with pytest.raises(ValueError, match=r"input codes must have shape \(n, 180\)"):
+        model.learn_inputs(z[:, :96])
+    z[0, 0] = np.inf
+    with pytest.raises(ValueError, match="finite"):
+        model.learn_inputs(z)
+
+
+def test_winners_and_readout_tables_are_the_read_outs(learned):
+    """Recognition and performance are ``winners`` followed by a lookup in ``readout_tables``;
+    ``winners`` takes any finite weighting of an area (a motor area times a gain)."""
+    model, _, (vision, language, motor, _) = learned
+    tables = model.readout_tables()
+    assert isinstance(tables, ReadoutTables)
+    assert tables.language.shape == (192, 80) and tables.motor.shape == (192, 4)
+    assert tables.scores.shape == (192, 3) and not tables.motor.flags.writeable
+    assert model.readout_tables() is tables  # cached
+    recognised = model.recognise_batch(vision[:200], motor[:200], motor_weight=3.0)
+    winners = model.winners(vision[:200], motor=3.0 * motor[:200])
+    np.testing.assert_array_equal(recognised.winners, winners)
+    np.testing.assert_array_equal(recognised.scores, tables.scores[winners])
+    performed = model.perform_batch(vision[:200], "lift")
+    winners = model.winners(vision[:200], language=np.tile(encoding.encode_word("lift"), (200, 1)))
+    np.testing.assert_array_equal(performed.winners, winners)
+    np.testing.assert_array_equal(performed.motor, tables.motor[winners])
+    w_vision = np.ascontiguousarray(model.W_bu_[:, :96].T)  # float32, as the network computes
+    np.testing.assert_array_equal(
+        model.winners(vision[:200]), np.argmax(vision[:200].astype(np.float32) @ w_vision, axis=1)
+    )
+    with pytest.raises(ValueError, match="finite"):
+        model.winners(vision[:2], motor=np.full((2, 4), np.nan))
+    with pytest.raises(ValueError, match=r"motor codes must have shape \(n, 4\)"):
+        model.winners(vision[:2], motor=motor[:2, :3])
+    with pytest.raises(ValueError, match="samples"):
+        model.winners(vision[:2], language=language[:3])
+    with pytest.raises(ValueError, match="not fitted"):
+        Associator().winners(vision[:2])
+
+
+def test_the_read_out_weight_is_motor_weight(learned):
+    model, _, (vision, _, motor, _) = learned
+    weighted = model.recognise_batch(vision[:100], motor[:100], motor_weight=3.0)
+    np.testing.assert_array_equal(
+        weighted.winners, model.winners(vision[:100], motor=3.0 * motor[:100])
+    )
+    assert model.recognise(vision[0], motor[0], motor_weight=3.0).word == weighted.words[0]
+    with pytest.raises(TypeError, match="motor_gain"):
+        model.recognise_batch(vision[:2], motor[:2], motor_gain=3.0)
+    with pytest.raises(TypeError, match="motor_gain"):
+        model.recognise(vision[0], motor[0], motor_gain=3.0)
+    with pytest.raises(ValueError, match="motor_weight must be a positive finite number"):
+        model.recognise_batch(vision[:2], motor[:2], motor_weight=-1.0)
+
+
+def test_unknown_words_are_refused(learned):
+    """Performance takes the network's vocabulary only; the error names the word and it."""
+    model, _, (vision, _, _, _) = learned
+    vocabulary = r"the network's vocabulary: \('go', 'pick', 'lift'\)"
+    with pytest.raises(ValueError, match=f"unknown word 'jump'; {vocabulary}"):
+        model.perform(vision[0], "jump")
+    with pytest.raises(ValueError, match=f"unknown word 'jump'; {vocabulary}"):
+        model.perform_batch(vision[:3], "jump")
+    with pytest.raises(ValueError, match="unknown words 'GO', 'jump'"):
+        model.perform_batch(vision[:3], ["go", "jump", "GO"])
+
+
+def test_from_state_rebuilds_the_network(learned):
+    model, _, (vision, _, motor, _) = learned
+    generator = np.random.default_rng(1)
+    rebuilt = Associator.from_state(
+        model.get_params(), model.W_bu_, model.W_td_, model.n_steps_, generator
+    )
+    assert rebuilt.rng_ is generator and rebuilt.n_steps_ == model.n_steps_
+    np.testing.assert_array_equal(
+        rebuilt.recognise_batch(vision[:100], motor[:100]).scores,
+        model.recognise_batch(vision[:100], motor[:100]).scores,
+    )
+    for change, match in [
+        (dict(params={**model.get_params(), "eta": -1.0}), "bad hyper-parameters.*eta"),
+        (dict(params={**model.get_params(), "colour": 1}), "bad hyper-parameters"),
+        (dict(W_bu=model.W_bu_[:5]), "do not match hidden_shape"),
+        (dict(W_td=model.W_td_.astype(float)), "weights are float32/float64"),
+        (dict(W_bu=-model.W_bu_), "W_bu has negative"),
+        (dict(n_steps=-1), "n_steps must be an int >= 0"),
+    ]:
+        state = dict(
+            params=model.get_params(),
+            W_bu=model.W_bu_,
+            W_td=model.W_td_,
+            n_steps=model.n_steps_,
+            generator=generator,
+        )
+        with pytest.raises(ValueError, match=match):
+            Associator.from_state(**{**state, **change})
+
+
+def test_saving_an_unfitted_model_raises(tmp_path):
+    with pytest.raises(ValueError, match="not fitted"):
+        persistence.save(Associator(), tmp_path / "a.npz")
+
+
+def test_no_reach_into_other_classes_private_names():
+    """Modules use other classes only through their public names: an attribute starting with one
+    underscore is read only from ``self`` or ``cls`` (``network.Associator.from_state`` installs
+    the state of the instance it creates)."""
+    package = pathlib.Path(encoding.__file__).parent
+    for source in package.glob("*.py"):
+        tree = ast.parse(source.read_text())
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+            ):
+                owner = node.value.id if isinstance(node.value, ast.Name) else None
+                allowed = {"self", "cls"} | ({"model"} if source.name == "network.py" else set())
+                assert owner in allowed, f"{source.name}:{node.lineno} .{node.attr}"
 
 
 def test_no_simulator_imports():
