@@ -14,7 +14,7 @@ run on one compiled model:
 - composer: dm-control's own ``composer.Environment`` on the same task;
 - raw: ``mujoco.mj_step(m, d, nstep=10)`` per control step on the environment's compiled model and a
   copy of its state and controls, no Python per step beyond the call;
-- streams: ``peoplebot_sim.streams.StreamGenerator`` (teacher controller + ``mj_step``).
+- streams: ``imitation.streams.StreamGenerator`` (teacher controller + ``mj_step``).
 
 The task layer's share is ``(t_env - t_raw) / t_env`` per control step; the goal is at most 30%.
 """
@@ -32,8 +32,8 @@ import mujoco
 import numpy as np
 from dm_control import composer
 
+from imitation.streams import StreamGenerator
 from peoplebot_sim import task
-from peoplebot_sim.streams import StreamGenerator
 
 
 def _time_env(env, action, n_steps: int) -> float:

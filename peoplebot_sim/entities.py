@@ -9,11 +9,24 @@ from dm_control.composer.observation import observable
 
 from peoplebot_sim import assets
 from perception import layout
+from perception.wallframe import ArenaGeometry
 
-#: Where the table stands: its centre, world frame, metres (against the middle of the top wall).
-TABLE_POSITION = (0.0, 1.8, 0.0)
-#: Where the object stands on the table, world frame, metres (near the table's front edge).
-OBJECT_POSITION = (0.0, 1.70, 0.50)
+#: How far the object stands behind the table's front edge, metres.
+OBJECT_SETBACK_M = 0.10
+
+
+def table_position(arena: ArenaGeometry) -> tuple[float, float, float]:
+    """Returns where the table model's origin stands: under the centre of its footprint, world
+    metres (``models/arena/table.xml`` has its origin on the floor under its centre)."""
+    x0, x1, y0, y1 = arena.table_box
+    return (0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.0)
+
+
+def object_position(arena: ArenaGeometry) -> tuple[float, float, float]:
+    """Returns where the object stands on the table, world metres: on its top, near its front edge."""
+    x0, x1, y0, _ = arena.table_box
+    # Rounded to a micrometre, as positions in an MJCF file are written.
+    return (0.5 * (x0 + x1), round(y0 + OBJECT_SETBACK_M, 6), arena.table_height_m)
 
 
 class PeopleBot(composer.Entity):

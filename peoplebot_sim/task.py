@@ -9,7 +9,6 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import dm_env
 import numpy as np
 from dm_control import composer
 from dm_control.composer.observation import observable
@@ -104,10 +103,10 @@ class ImitationTask(composer.Task):
             self._teacher = entities.PeopleBot("teacher")
             self._arena.attach(self._teacher).add("freejoint")
         self._table = entities.Table()
-        self._arena.attach(self._table).pos = entities.TABLE_POSITION
+        self._arena.attach(self._table).pos = entities.table_position(self.geometry)
         self._object = entities.GraspObject()
         frame = self._arena.attach(self._object)
-        frame.pos = entities.OBJECT_POSITION
+        frame.pos = entities.object_position(self.geometry)
         frame.add("freejoint")
         self.teacher_controller = Teacher(config.teacher, self.geometry)
         self.collisions = 0
@@ -132,6 +131,10 @@ class ImitationTask(composer.Task):
     @property
     def teacher(self) -> entities.PeopleBot | None:
         return self._teacher
+
+    @property
+    def grasp_object(self) -> entities.GraspObject:
+        return self._object
 
     @property
     def task_observables(self):
@@ -249,7 +252,7 @@ class ImitationTask(composer.Task):
             self._teacher.set_planar_pose(physics, *pose)
         self._object.set_pose(
             physics,
-            position=np.array(entities.OBJECT_POSITION),
+            position=np.array(entities.object_position(self.geometry)),
             quaternion=np.array([1.0, 0, 0, 0]),
         )
         self.teacher_controller.reset(rng)
@@ -265,7 +268,7 @@ class ImitationTask(composer.Task):
         h = self.geometry.half_side_m - margin_m
         for _ in range(1000):
             x, y = rng.uniform(-h, h, size=2)
-            clear_table = not (abs(x) < 0.5 + margin_m and y > 1.6 - margin_m)
+            clear_table = self.geometry.clear_of_table(x, y, margin_m)
             clear_robot = avoid is None or math.hypot(x - avoid[0], y - avoid[1]) > 1.0
             if clear_table and clear_robot:
                 return float(x), float(y), float(rng.uniform(-math.pi, math.pi))
@@ -328,102 +331,48 @@ class ImitationTask(composer.Task):
 
     def teacher_touches_obstacle(self, physics) -> bool:
         """Returns whether any teacher geom touches a wall, the table or the student."""
-        return robot_touches_obstacle(physics, self._teacher, self)
+        return self.touches_obstacle(physics, self._teacher)
 
+    def touches_obstacle(self, physics, robot: entities.PeopleBot) -> bool:
+        """Returns whether any geom of ``robot`` touches a wall, the table or the other robot."""
+        own, obstacle = self._contact_masks(physics)[robot.role]
+        n = physics.data.ncon
+        if n == 0:
+            return False
+        g1 = physics.data.contact.geom1[:n]
+        g2 = physics.data.contact.geom2[:n]
+        return bool(np.any((own[g1] & obstacle[g2]) | (own[g2] & obstacle[g1])))
 
-def _contact_masks(physics, task) -> dict:
-    """Returns, per robot role, boolean masks over geoms: the robot's own geoms, and the geoms it must
-    not touch (walls, the table, the other robot). Cached per compiled model."""
-    key = id(physics.model.ptr)
-    cached = getattr(task, "_contact_masks_cache", None)
-    if cached is not None and cached[0] == key:
-        return cached[1]
-    model = physics.model
-    geom_root = model.body_rootid[model.geom_bodyid]
-    names = [model.id2name(g, "geom") or "" for g in range(model.ngeom)]
-    walls = np.array(
-        [geom_root[g] == 0 and names[g].startswith("wall") for g in range(model.ngeom)]
-    )
-    table_body = task._table.mjcf_model.find("body", "table")
-    table = geom_root == model.body_rootid[physics.bind(table_body).element_id]
-    robots = [r for r in (task.student, task.teacher) if r is not None]
-    roots = {r.role: model.body_rootid[physics.bind(r.root_body).element_id] for r in robots}
-    masks = {}
-    for robot in robots:
-        own = geom_root == roots[robot.role]
-        others = np.zeros(model.ngeom, bool)
-        for role, root in roots.items():
-            if role != robot.role:
-                others |= geom_root == root
-        masks[robot.role] = (own, walls | table | others)
-    task._contact_masks_cache = (key, masks)
-    return masks
-
-
-def robot_touches_obstacle(physics, robot, task) -> bool:
-    """Returns whether any geom of ``robot`` touches a wall, the table or the other robot."""
-    own, obstacle = _contact_masks(physics, task)[robot.role]
-    n = physics.data.ncon
-    if n == 0:
-        return False
-    g1 = physics.data.contact.geom1[:n]
-    g2 = physics.data.contact.geom2[:n]
-    return bool(np.any((own[g1] & obstacle[g2]) | (own[g2] & obstacle[g1])))
-
-
-class Environment(composer.Environment):
-    """A composer environment that advances the physics of a control step in one ``mj_step`` call.
-
-    Composer steps the physics one substep at a time so that substep hooks can run between them; this
-    task has none, and the per-substep Python bookkeeping cost more than the physics itself. The
-    trajectory is identical: ``physics.step(n)`` runs the same ``n`` MuJoCo steps.
-    """
-
-    def __init__(self, task, **kwargs):
-        super().__init__(task, **kwargs)
-        hooks = self._hooks
-        no_substep_hooks = not (
-            hooks._before_substep.entity_hooks
-            or hooks._before_substep.extra_hooks
-            or hooks._after_substep.entity_hooks
-            or hooks._after_substep.extra_hooks
+    def _contact_masks(self, physics) -> dict:
+        """Returns, per robot role, boolean masks over geoms: the robot's own geoms, and the geoms
+        it must not touch (walls, the table, the other robot). Cached per compiled model."""
+        key = id(physics.model.ptr)
+        cached = getattr(self, "_contact_masks_cache", None)
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        model = physics.model
+        geom_root = model.body_rootid[model.geom_bodyid]
+        names = [model.id2name(g, "geom") or "" for g in range(model.ngeom)]
+        walls = np.array(
+            [geom_root[g] == 0 and names[g].startswith("wall") for g in range(model.ngeom)]
         )
-        # Composer leaves delay and buffer size as None (meaning its defaults, 0 and 1).
-        default_schedules = all(
-            ob.update_interval == 1 and ob.delay in (None, 0) and ob.buffer_size in (None, 1)
-            for ob in task.observables.values()
-        )
-        task_hooks = (
-            type(task).before_substep is composer.Task.before_substep
-            and type(task).after_substep is composer.Task.after_substep
-        )
-        self._fused = no_substep_hooks and default_schedules and task_hooks
-
-    def step(self, action):
-        if not self._fused or self._reset_next_step:
-            return super().step(action)
-        self._hooks.before_step(self._physics_proxy, action, self._random_state)
-        self._observation_updater.prepare_for_next_control_step()
-        self._physics.step(self._n_sub_steps)
-        # The updater schedules default-interval observables for the last substep only, so the
-        # intermediate substeps' update() calls would only count; count them at once.
-        self._observation_updater._step_counter += self._n_sub_steps - 1
-        self._hooks.after_step(self._physics_proxy, self._random_state)
-        self._observation_updater.update()
-        terminating = (
-            self._task.should_terminate_episode(self._physics_proxy)
-            or self._physics.time() >= self._time_limit
-        )
-        obs = self._observation_updater.get_observation()
-        reward = self._task.get_reward(self._physics_proxy)
-        discount = self._task.get_discount(self._physics_proxy)
-        if terminating:
-            self._reset_next_step = True
-            return dm_env.TimeStep(dm_env.StepType.LAST, reward, discount, obs)
-        return dm_env.TimeStep(dm_env.StepType.MID, reward, discount, obs)
+        table_body = self._table.mjcf_model.find("body", "table")
+        table = geom_root == model.body_rootid[physics.bind(table_body).element_id]
+        robots = [r for r in (self._student, self._teacher) if r is not None]
+        roots = {r.role: model.body_rootid[physics.bind(r.root_body).element_id] for r in robots}
+        masks = {}
+        for robot in robots:
+            own = geom_root == roots[robot.role]
+            others = np.zeros(model.ngeom, bool)
+            for role, root in roots.items():
+                if role != robot.role:
+                    others |= geom_root == root
+            masks[robot.role] = (own, walls | table | others)
+        self._contact_masks_cache = (key, masks)
+        return masks
 
 
-def load(config: TaskConfig | None = None, seed=None, **overrides) -> Environment:
+def load(config: TaskConfig | None = None, seed=None, **overrides) -> composer.Environment:
     """Returns the imitation environment (a ``dm_env.Environment``).
 
     Args:
@@ -433,7 +382,7 @@ def load(config: TaskConfig | None = None, seed=None, **overrides) -> Environmen
     config = dataclasses.replace(config or TaskConfig(), **overrides)
     task = ImitationTask(config)
     # The model never changes between episodes: compile it once (composer recompiles by default).
-    return Environment(
+    return composer.Environment(
         task,
         random_state=seed,
         strip_singleton_obs_buffer_dim=True,

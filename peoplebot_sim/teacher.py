@@ -23,10 +23,8 @@ import math
 
 import numpy as np
 
+from associator.encoding import DIRECTIVES
 from perception.wallframe import ArenaGeometry, world_to_wall, wrap_degrees
-
-#: The table's footprint, world frame, metres: x from -0.5 to 0.5, y from 1.6 to the top wall.
-TABLE_BOX = (-0.5, 0.5, 1.6, 2.0)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +78,27 @@ class TeacherConfig:
     max_seconds: dict = dataclasses.field(
         default_factory=lambda: {"go": 900.0, "pick": 60.0, "lift": 30.0}
     )
+
+    def __post_init__(self):
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, float) and not (math.isfinite(value) and value >= 0):
+                raise ValueError(
+                    f"teacher.{field.name} must be a finite number >= 0, got {value!r}"
+                )
+        unknown = [d for d in self.settle_pattern if d not in DIRECTIVES]
+        if unknown:
+            raise ValueError(
+                f"teacher.settle_pattern holds unknown directives {unknown}; allowed: "
+                f"{', '.join(DIRECTIVES)}"
+            )
+        if set(self.max_seconds) != {"go", "pick", "lift"} or not all(
+            isinstance(v, (int, float)) and v > 0 for v in self.max_seconds.values()
+        ):
+            raise ValueError(
+                "teacher.max_seconds must give a positive number of seconds for go, pick and "
+                f"lift, got {self.max_seconds!r}"
+            )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -204,7 +223,7 @@ class Teacher:
         yield h + x, math.pi
         yield h - y, math.pi / 2
         yield h + y, -math.pi / 2
-        x0, x1, y0, y1 = TABLE_BOX
+        x0, x1, y0, y1 = self.arena.table_box
         px, py = min(max(x, x0), x1), min(max(y, y0), y1)
         dx, dy = px - x, py - y
         yield math.hypot(dx, dy), math.atan2(dy, dx)

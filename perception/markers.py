@@ -38,7 +38,7 @@ class DetectorConfig:
 
     Attributes:
       corner_refinement: one of ``CORNER_REFINEMENTS``; "apriltag" was chosen by measurement on
-        synthetic markers at our sizes (``python -m perception.refinement_study``, NOTES.md).
+        synthetic markers at our sizes (``python -m studies.refinement_study``, docs/perception.md).
       apriltag_offset_px: subtracted from both coordinates of corners refined by "apriltag", which
         come in the AprilTag library's pixel-edge convention (top-left pixel centre at (0.5, 0.5))
         rather than OpenCV's pixel-centre one; measured +0.43 to +0.48 px in OpenCV 5.0. The tests

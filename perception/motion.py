@@ -15,9 +15,10 @@ import dataclasses
 
 import numpy as np
 
+from associator.encoding import DIRECTIVES
+from perception.drive import DriveSpeeds
 from perception.pose import wrap_radians
 
-DIRECTIVES = ("forward", "backward", "turn_left", "turn_right")
 #: Label used for "no directive inferred" in confusion matrices.
 NO_DIRECTIVE = "none"
 
@@ -27,15 +28,15 @@ class DirectiveConfig:
     """Thresholds for directive inference.
 
     Attributes:
-      forward_speed_mps: nominal forward/backward speed, metres per second.
-      turn_rate_deg_s: nominal turn rate, degrees per second.
+      forward_speed_mps: nominal forward/backward speed, metres per second (default: the drive's).
+      turn_rate_deg_s: nominal turn rate, degrees per second (default: the drive's).
       min_fraction: below this fraction of both nominal rates the robot counts as still (None).
       window: number of control periods spanned by each comparison (1 = consecutive poses); larger
         windows average out pose noise but lag directive changes.
     """
 
-    forward_speed_mps: float = 0.35
-    turn_rate_deg_s: float = 60.0
+    forward_speed_mps: float = DriveSpeeds().linear_mps
+    turn_rate_deg_s: float = DriveSpeeds().turn_deg_s
     min_fraction: float = 0.3
     window: int = 1
 

@@ -41,24 +41,52 @@ def wrap_degrees(angle_deg):
 
 @dataclasses.dataclass(frozen=True)
 class ArenaGeometry:
-    """A square arena centred on the world origin.
+    """A square arena centred on the world origin, with the table against the middle of its top wall.
+
+    The one definition of the arena's and the table's geometry: the world's models, the teacher, the
+    success rules and the figures all read it (``tests/test_sim_models.py`` checks the MJCF agrees).
 
     Attributes:
       side_m: inner side length in metres (wall face to wall face).
+      table_width_m: the table's extent along the top wall, metres, centred on the wall's middle.
+      table_depth_m: the table's extent out from the top wall, metres.
+      table_height_m: the height of the table's top surface, metres.
     """
 
     side_m: float = 4.0
+    table_width_m: float = 1.0
+    table_depth_m: float = 0.4
+    table_height_m: float = 0.5
 
     def __post_init__(self):
-        if not np.isfinite(self.side_m) or self.side_m <= 0:
+        for name in ("side_m", "table_width_m", "table_depth_m", "table_height_m"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+                raise ValueError(
+                    f"{name} must be a positive finite number of metres, got {value!r}"
+                )
+        if self.table_width_m >= self.side_m or self.table_depth_m >= 0.5 * self.side_m:
             raise ValueError(
-                f"side_m must be a positive finite number of metres, got {self.side_m!r}"
+                f"the table ({self.table_width_m} x {self.table_depth_m} m) must fit against one "
+                f"wall of a {self.side_m} m arena"
             )
 
     @property
     def half_side_m(self) -> float:
         """Returns the distance in metres from the centre to each wall."""
         return 0.5 * self.side_m
+
+    @property
+    def table_box(self) -> tuple[float, float, float, float]:
+        """Returns the table's footprint ``(x_min, x_max, y_min, y_max)``, world metres."""
+        half_width = 0.5 * self.table_width_m
+        return (-half_width, half_width, self.half_side_m - self.table_depth_m, self.half_side_m)
+
+    def clear_of_table(self, x_world: float, y_world: float, margin_m: float) -> bool:
+        """Returns whether the world point (metres) lies at least ``margin_m`` outside the table's
+        footprint along either axis (a box test, as for a robot's centre with that clearance)."""
+        x0, x1, y0, _ = self.table_box
+        return not (x0 - margin_m < x_world < x1 + margin_m and y_world > y0 - margin_m)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -8,8 +8,11 @@ import pytest
 
 from associator import encoding
 from associator.network import Associator
-from peoplebot_sim import learning
-from peoplebot_sim.streams import StreamGenerator
+from imitation import learning
+from imitation.streams import StreamGenerator
+from perception.wallframe import ArenaGeometry
+
+ARENA = ArenaGeometry()
 
 #: Control steps of the shared stream (150 s of the teacher looping go-pick-lift).
 STREAM_STEPS = 1500
@@ -36,4 +39,8 @@ def small_associator():
 def trained_associator(teacher_stream):
     """Returns a small associator fitted once on the shared stream."""
     model = _small_associator(len(teacher_stream))
-    return model.fit(*learning.encode_stream(teacher_stream, encoding.VisionEncoder()))
+    return model.fit(
+        *learning.encode_stream(
+            teacher_stream, encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
+        )
+    )

@@ -1,4 +1,4 @@
-"""The performing agents (``peoplebot_sim.performance``): every action the student or the teacher
+"""The performing agents (``imitation.performance``): every action the student or the teacher
 sends satisfies the environment's action spec, in every vision mode; bad settings are refused by
 name."""
 
@@ -9,13 +9,16 @@ import numpy as np
 import pytest
 
 from associator import encoding
-from peoplebot_sim import learning, performance, task
-from peoplebot_sim.cli import main
-from peoplebot_sim.observers import Calibration, StudentVision
-from peoplebot_sim.performance import StudentAgent, TeacherAgent, make_action
-from peoplebot_sim.recognition import watch_with_vision
-from peoplebot_sim.reproduce import ReproduceConfig
-from perception.wallframe import world_to_wall
+from imitation import learning, performance
+from imitation.cli import main
+from imitation.config import RunConfig
+from imitation.observers import Calibration, StudentVision
+from imitation.performance import StudentAgent, TeacherAgent, make_action
+from imitation.recognition import watch_with_vision
+from peoplebot_sim import task
+from perception.wallframe import ArenaGeometry, world_to_wall
+
+ARENA = ArenaGeometry()
 
 WORDS = ("go", "pick", "lift")
 WIDTH, HEIGHT = 320, 240  # the trials' camera size
@@ -57,7 +60,7 @@ def test_student_actions_in_truth_mode_satisfy_the_spec(student_env, trained_ass
                 trained_associator,
                 word,
                 StudentVision("truth", watch_teacher=False),
-                encoding.VisionEncoder(),
+                encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
                 spec,
                 graded=graded,
             )
@@ -75,7 +78,7 @@ def test_student_actions_with_the_overhead_camera_satisfy_the_spec(trained_assoc
         trained_associator,
         "go",
         StudentVision("overhead", calibration, watch_teacher=False),
-        encoding.VisionEncoder(),
+        encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
         env.action_spec(),
     )
     seen = 0
@@ -99,7 +102,13 @@ def test_student_actions_with_the_head_camera_satisfy_the_spec(student_env, trai
         vision = StudentVision(
             "head", Calibration(student_env.physics, WIDTH, HEIGHT), watch_teacher=False
         )
-        agent = StudentAgent(trained_associator, word, vision, encoding.VisionEncoder(), spec)
+        agent = StudentAgent(
+            trained_associator,
+            word,
+            vision,
+            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+            spec,
+        )
         actions = drive_and_check(student_env, agent, performance.FIG4_START, 30)
         assert agent.own_pose is not None
         np.testing.assert_array_equal(actions[:, 4:], 0.0)
@@ -111,7 +120,13 @@ def test_head_camera_pan_tilt_commands_stay_within_the_spec(trained_associator):
     env = task.load(cameras=("head",), width=WIDTH, height=HEIGHT, seed=1)
     spec = env.action_spec()
     vision = StudentVision("head", Calibration(env.physics, WIDTH, HEIGHT), watch_teacher=True)
-    agent = StudentAgent(trained_associator, "go", vision, encoding.VisionEncoder(), spec)
+    agent = StudentAgent(
+        trained_associator,
+        "go",
+        vision,
+        encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+        spec,
+    )
     timestep = env.reset()
     agent.reset(timestep, timestep.observation["student_pose"])
     heads = []
@@ -170,7 +185,7 @@ def test_unknown_vision_mode_is_refused_by_name():
     with pytest.raises(ValueError, match="'sonar'.*truth, overhead, head"):
         StudentVision("sonar")
     with pytest.raises(ValueError, match="'sonar'"):
-        ReproduceConfig.quick(vision="sonar")
+        RunConfig.quick().replace({"vision.mode": "sonar"})
     with pytest.raises(ValueError, match="'truth'"):
         watch_with_vision(0, 10, "truth", progress=False)
     with pytest.raises(ValueError, match="calibration"):
@@ -181,7 +196,7 @@ def test_unknown_motor_source_is_refused_by_name():
     with pytest.raises(ValueError, match="'telepathy'.*teacher, vision"):
         learning.check_motor_source("telepathy")
     with pytest.raises(ValueError, match="'telepathy'"):
-        ReproduceConfig.quick(motor_source="telepathy")
+        RunConfig.quick().replace({"learning.motor_source": "telepathy"})
 
 
 def test_unknown_word_is_refused_by_name(student_env, trained_associator):
@@ -190,7 +205,11 @@ def test_unknown_word_is_refused_by_name(student_env, trained_associator):
         TeacherAgent("jump", spec)
     with pytest.raises(ValueError, match="'jump'"):
         StudentAgent(
-            trained_associator, "jump", StudentVision("truth"), encoding.VisionEncoder(), spec
+            trained_associator,
+            "jump",
+            StudentVision("truth"),
+            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+            spec,
         )
 
 
@@ -202,17 +221,17 @@ def test_unknown_row_is_refused_by_name():
 @pytest.mark.parametrize(
     "field, value",
     [
-        ("train_steps", 0),
-        ("trials", -1),
+        ("learning.train_steps", 0),
+        ("performance.trials", -1),
         ("workers", 0),
-        ("test_steps", 2.5),
-        ("trial_seconds", 4.0),
-        ("trial_seconds", float("nan")),
+        ("learning.test_steps", 2.5),
+        ("performance.trial_seconds", 4.0),
+        ("performance.trial_seconds", float("nan")),
     ],
 )
 def test_bad_reproduce_settings_are_refused_by_name(field, value):
-    with pytest.raises(ValueError, match=field):
-        ReproduceConfig.quick(**{field: value})
+    with pytest.raises(ValueError, match=field.replace(".", r"\.")):
+        RunConfig.quick().replace({field: value})
 
 
 def test_cli_refuses_an_unknown_vision_mode(capsys):

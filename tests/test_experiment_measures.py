@@ -11,9 +11,16 @@ import numpy as np
 import pytest
 
 from associator import encoding
-from peoplebot_sim import directives, learning, recognition
-from peoplebot_sim.performance import SuccessConfig, SuccessMonitor, dock_pose_at
-from peoplebot_sim.streams import TeacherStream
+from associator.hierarchy import HierarchicalAssociator
+from associator.network import Associator
+from imitation import learning, recognition
+from imitation.performance import SuccessConfig, SuccessMonitor, dock_pose_at
+from imitation.results import PAPER_TABLE_I, ConfusionTable
+from imitation.streams import TeacherStream
+from peoplebot_sim import directives
+from perception.wallframe import ArenaGeometry
+
+ARENA = ArenaGeometry()
 
 DT = 0.1  # control step, s
 STEPS_60S = 600
@@ -147,12 +154,7 @@ def test_lift_facing_away_from_the_centre_fails():
 
 def test_success_config_numbers_are_the_documented_ones():
     c = SuccessConfig()
-    assert (c.seconds, c.go_min_wall_areas, c.go_window_s, c.go_min_window_travel_m) == (
-        60.0,
-        2,
-        10.0,
-        0.2,
-    )
+    assert (c.go_min_wall_areas, c.go_window_s, c.go_min_window_travel_m) == (2, 10.0, 0.2)
     assert (c.dock_position_tol_m, c.dock_heading_tol_deg) == (0.15, 20.0)
     assert (c.lift_min_gap_m, c.lift_heading_tol_deg) == (0.5, 45.0)
 
@@ -164,7 +166,7 @@ def test_confusion_counts_and_table_on_constructed_labels():
     recognised = np.array([go, pick, go, lift, pick, pick, go], np.int8)
     counts = recognition.confusion_counts(true, recognised)
     np.testing.assert_array_equal(counts, [[2, 1, 1], [0, 2, 0], [1, 0, 0]])
-    t = recognition.table(counts)
+    t = ConfusionTable.from_counts(counts).to_json()
     assert t["counts"] == {"go": 4, "pick": 2, "lift": 1}
     assert t["confusion"]["go"] == {"go": 0.5, "pick": 0.25, "lift": 0.25}
     assert t["confusion"]["pick"] == {"go": 0.0, "pick": 1.0, "lift": 0.0}
@@ -176,19 +178,19 @@ def test_confusion_counts_and_table_on_constructed_labels():
 
 def test_table_row_without_samples_is_none_not_nan():
     counts = recognition.confusion_counts(np.array([0, 0, 1]), np.array([0, 1, 1]))
-    t = recognition.table(counts)
+    t = ConfusionTable.from_counts(counts).to_json()
     assert t["counts"]["lift"] == 0
     assert t["confusion"]["lift"] == {"go": None, "pick": None, "lift": None}
 
 
 def test_paper_table_rows_sum_to_one():
-    for word, row in recognition.PAPER_TABLE_I["confusion"].items():
+    for word, row in PAPER_TABLE_I.confusion.items():
         assert sum(row.values()) == pytest.approx(1.0, abs=2e-4), word
 
 
 def test_recognise_stream_matches_the_network_sample_by_sample(trained_associator, teacher_stream):
     """Chunked recognition of a stream equals the network's own read-out of each step."""
-    encoder = encoding.VisionEncoder()
+    encoder = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
     recognised = recognition.recognise_stream(
         trained_associator, teacher_stream, encoder, chunk=333
     )
@@ -203,11 +205,9 @@ def test_recognise_stream_matches_the_network_sample_by_sample(trained_associato
 def test_recognise_stream_over_time_carries_the_belief_across_chunks_and_gaps(teacher_stream):
     """Over-time recognition of a stream in chunks, with steps not seen (NaN poses), equals the
     network's one call on the seen steps; unseen steps get -1 and bad masks are refused."""
-    from associator.hierarchy import HierarchicalAssociator
-
-    encoder = encoding.VisionEncoder()
+    encoder = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
     n = len(teacher_stream)
-    model = HierarchicalAssociator(hidden_shape=(6, 12), n_steps_total=n, rng=0)
+    model = HierarchicalAssociator(lower=Associator(hidden_shape=(6, 12), n_steps_total=n, rng=0))
     model.fit(*learning.encode_stream(teacher_stream, encoder))
     seen = np.ones(n, bool)
     seen[5:40] = False
@@ -239,15 +239,15 @@ def test_recognise_stream_over_time_carries_the_belief_across_chunks_and_gaps(te
             out = recognition.recognise_observed(
                 model, observed, encoder, motor_source, over_time=over_time
             )
-            assert out["seen_fraction"] == pytest.approx(seen.mean())
-            for name in ("vision", "truth_same_steps"):
-                assert sum(out[name]["counts"].values()) == seen.sum(), (motor_source, name)
+            assert out.seen_fraction == pytest.approx(seen.mean())
+            for table in (out.vision, out.truth_same_steps):
+                assert sum(table.totals().values()) == seen.sum(), motor_source
         outs[motor_source] = out
     truth = recognition.recognise_stream(model, teacher_stream, encoder, over_time=True, seen=seen)[
         seen
     ]
-    expected = recognition.table(recognition.confusion_counts(teacher_stream.word[seen], truth))
-    assert expected["counts_matrix"] == outs["teacher"]["truth_same_steps"]["counts_matrix"]
+    expected = recognition.table(teacher_stream.word[seen], truth)
+    assert expected == outs["teacher"].truth_same_steps
 
 
 # ------------------------------------------------------------------------------ inferred motor

@@ -1,4 +1,4 @@
-"""``peoplebot reproduce`` end to end at a tiny scale (``peoplebot_sim.reproduce``): every artefact
+"""``peoplebot reproduce`` end to end at a tiny scale (``imitation.reproduce``): every artefact
 is produced and parseable, an interrupted run resumes to the same results, a run folder refuses
 other settings, and the CLI maps its options onto the same run. Not the scientific numbers.
 
@@ -18,16 +18,24 @@ import numpy as np
 import pytest
 
 from associator import persistence
-from peoplebot_sim import performance, reproduce, trials
-from peoplebot_sim.cli import main
-from peoplebot_sim.reproduce import STAGES, ReproduceConfig
-from peoplebot_sim.runstate import RunState
-from peoplebot_sim.streams import TeacherStream
+from imitation import config as run_config
+from imitation import performance, reproduce, trials
+from imitation.cli import main
+from imitation.config import RunConfig
+from imitation.reproduce import STAGES
+from imitation.results import SCHEMA_VERSION
+from imitation.runstate import RunState
+from imitation.streams import TeacherStream
 
 WORDS = ("go", "pick", "lift")
-TINY = dict(
-    train_steps=3000, test_steps=2000, vision_test_steps=50, trials=1, trial_seconds=6.0, workers=2
-)
+TINY = {
+    "learning.train_steps": 3000,
+    "learning.test_steps": 2000,
+    "vision.test_steps": 50,
+    "performance.trials": 1,
+    "performance.trial_seconds": 6.0,
+    "workers": 2,
+}
 #: The same settings as command-line options (videos at quick's default 320 x 240).
 TINY_CLI = [
     "--quick",
@@ -47,8 +55,9 @@ TINY_CLI = [
 FRAMES = 60  # trial_seconds / 0.1 s
 
 
-def tiny_config(**overrides) -> ReproduceConfig:
-    return ReproduceConfig.quick(**{**TINY, **overrides})
+def tiny_config(**overrides) -> RunConfig:
+    """Returns the tiny run's configuration with dotted keys changed."""
+    return RunConfig.quick().replace({**TINY, **overrides})
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +65,7 @@ def run_folder(tmp_path_factory):
     """Returns ``(folder, results)`` of one uninterrupted tiny run."""
     folder = tmp_path_factory.mktemp("reproduce") / "run"
     results = reproduce.run(tiny_config(), folder)
-    return folder, results
+    return folder, results.to_json()
 
 
 def comparable(results: dict) -> dict:
@@ -74,6 +83,25 @@ def comparable(results: dict) -> dict:
 def test_run_returns_what_results_json_holds(run_folder):
     folder, results = run_folder
     assert json.loads((folder / "results.json").read_text()) == results
+    assert results["schema_version"] == SCHEMA_VERSION
+
+
+def test_config_toml_makes_the_same_run_again(run_folder, tmp_path, capsys):
+    """The run folder's config.toml reads back as the run's configuration, and ``--config`` with
+    it finds the finished run's settings in a copy of its folder (every stage kept)."""
+    folder, reference = run_folder
+    assert run_config.load(folder / "config.toml") == tiny_config()
+    copy_folder = tmp_path / "copy"
+    shutil.copytree(folder, copy_folder)
+    assert (
+        main(["reproduce", "--config", str(folder / "config.toml"), "--out", str(copy_folder)]) == 0
+    )
+    out = capsys.readouterr().out
+    for stage in STAGES:
+        assert f"[{stage}] done earlier, kept" in out
+    assert comparable(json.loads((copy_folder / "results.json").read_text())) == comparable(
+        reference
+    )
 
 
 def test_results_json_recognition(run_folder):
@@ -91,13 +119,13 @@ def test_results_json_recognition(run_folder):
         assert sum(counts.values()) == rec["counts"][true]
         for recognised in WORDS:
             assert row[recognised] == pytest.approx(counts[recognised] / rec["counts"][true])
-    assert sum(rec["counts"].values()) == TINY["test_steps"]
+    assert sum(rec["counts"].values()) == TINY["learning.test_steps"]
     assert all(rec["counts"][w] > 0 for w in WORDS), "the test stream should show every word"
     assert rec["paper"]["counts"]["go"] == 746211
     # The recognised words saved beside the stream give the same table.
     recognised = np.load(folder / "recognised_test.npy")
     stream = TeacherStream.load(folder / "streams" / "test.npz")
-    assert recognised.shape == (TINY["test_steps"],)
+    assert recognised.shape == (TINY["learning.test_steps"],)
     for i, true in enumerate(WORDS):
         for j, name in enumerate(WORDS):
             assert rec["counts_matrix"][true][name] == int(
@@ -110,30 +138,30 @@ def test_results_json_performance_and_settings(run_folder):
     results = json.loads((folder / "results.json").read_text())
     perf = results["performance"]
     for row in ("go", "pick", "lift", "pick_other_wall"):
-        assert perf[row]["trials"] == TINY["trials"]
+        assert perf[row]["trials"] == TINY["performance.trials"]
         assert 0.0 <= perf[row]["success_rate"] <= 1.0
         assert perf[row]["successes"] == round(perf[row]["success_rate"] * perf[row]["trials"])
     assert set(perf["teacher_reference"]) == set(WORDS)
     assert results["vision"] == "truth" and results["motor_source"] == "teacher"
     assert results["seed"] == 0
-    assert results["config"] == tiny_config().as_dict()
+    assert results["config"] == tiny_config().to_dict()
     for name in ("python", "mujoco", "dm-control", "numpy"):
         assert isinstance(results["versions"][name], str), name
     assert set(results["seconds_per_stage"]) == set(STAGES)
     assert all(s > 0 for s in results["seconds_per_stage"].values())
     assert results["total_seconds"] == pytest.approx(sum(results["seconds_per_stage"].values()))
-    assert results["learning"]["steps"] == TINY["train_steps"]
-    assert results["learning"]["hierarchical"]["steps"] == TINY["train_steps"]
+    assert results["learning"]["steps"] == TINY["learning.train_steps"]
+    assert results["learning"]["hierarchical"]["steps"] == TINY["learning.train_steps"]
     for name in ("hierarchical", "hierarchical_over_time"):
         hierarchical = results["recognition"][name]
         for t in WORDS:
             assert sum(hierarchical["confusion"][t].values()) == pytest.approx(1.0), name
         assert hierarchical["counts"] == results["recognition"]["counts"], name
     for row in ("go", "pick", "lift", "pick_other_wall"):
-        assert results["performance"]["hierarchical"][row]["trials"] == TINY["trials"]
+        assert results["performance"]["hierarchical"][row]["trials"] == TINY["performance.trials"]
     assert {k: v["steps"] for k, v in results["streams"].items()} == {
-        "train": TINY["train_steps"],
-        "test": TINY["test_steps"],
+        "train": TINY["learning.train_steps"],
+        "test": TINY["learning.test_steps"],
     }
 
 
@@ -142,7 +170,7 @@ def test_performance_trials_follow_the_plan(run_folder):
     at most the trial length, ending where the record says."""
     folder, _ = run_folder
     records = json.loads((folder / "performance_trials.json").read_text())
-    plan = trials.trial_plan(TINY["trials"], 0)
+    plan = trials.trial_plan(tiny_config())
     key = lambda t: (t["row"], t["policy"], t["index"])  # noqa: E731
     assert sorted(map(key, records)) == sorted(map(key, plan))
     # student, hierarchical student and teacher per row; no teacher row for other walls.
@@ -150,7 +178,7 @@ def test_performance_trials_follow_the_plan(run_folder):
     planned = {key(p): p for p in plan}
     for r in records:
         assert r["start"] == planned[key(r)]["start"]
-        assert 0 < r["seconds"] <= TINY["trial_seconds"] + 1e-9
+        assert 0 < r["seconds"] <= TINY["performance.trial_seconds"] + 1e-9
         assert len(r["end_pose"]) == 3 and np.all(np.isfinite(r["end_pose"]))
 
 
@@ -206,15 +234,18 @@ def test_videos_play_with_one_frame_per_step(run_folder):
 def test_network_loads_with_its_training(run_folder):
     folder, results = run_folder
     model = persistence.load(folder / "network.npz")
-    assert model.n_steps_ == TINY["train_steps"]
-    assert model.get_params()["n_steps_total"] == TINY["train_steps"]
+    assert model.n_steps_ == TINY["learning.train_steps"]
+    assert model.get_params()["n_steps_total"] == TINY["learning.train_steps"]
     assert np.all(np.isfinite(model.W_bu_)) and np.all(np.isfinite(model.W_td_))
     assert results["learning"]["params"]["hidden_shape"] == list(model.hidden_shape)
 
 
 def test_streams_are_saved_whole(run_folder):
     folder, _ = run_folder
-    for name, steps in (("train", TINY["train_steps"]), ("test", TINY["test_steps"])):
+    for name, steps in (
+        ("train", TINY["learning.train_steps"]),
+        ("test", TINY["learning.test_steps"]),
+    ):
         stream = TeacherStream.load(folder / "streams" / f"{name}.npz")
         assert len(stream) == steps
         assert np.all(np.isfinite(stream.pose_world))
@@ -261,7 +292,7 @@ def test_interrupted_run_resumes_to_the_same_results(run_folder, tmp_path, monke
     with monkeypatch.context() as patch:
         patch.setattr(reproduce, "stage_streams", redone)
         patch.setattr(reproduce, "stage_learning", redone)
-        results = reproduce.run(tiny_config(), folder)
+        results = reproduce.run(tiny_config(), folder).to_json()
     assert comparable(results) == comparable(reference)
     assert set(results["seconds_per_stage"]) == set(STAGES)
     a, b = (persistence.load(f / "network.npz") for f in (folder, reference_folder))
@@ -282,23 +313,25 @@ def test_teacher_reference_trials_are_seeded(run_folder):
     """The teacher agent of a planned trial is built from the run's seed: two builds of the same
     trial's agent start in the same state (its turn jitter included), so the reference row is
     reproducible and resumes like the student's."""
-    env = trials._environment("truth", 0)
+    config = tiny_config()
+    env = trials.student_environment(config)
     try:
-        first = trials._agent("teacher", "lift", env, None, "truth", None, rng=[0, 3, 1])
-        second = trials._agent("teacher", "lift", env, None, "truth", None, rng=[0, 3, 1])
-        other = trials._agent("teacher", "lift", env, None, "truth", None, rng=[0, 3, 2])
+        first = trials.make_agent(config, "teacher", "lift", env, None, None, rng=[0, 3, 1])
+        second = trials.make_agent(config, "teacher", "lift", env, None, None, rng=[0, 3, 1])
+        other = trials.make_agent(config, "teacher", "lift", env, None, None, rng=[0, 3, 2])
         assert first.controller.get_state() == second.controller.get_state()
         assert first.controller.get_state()["rng"] != other.controller.get_state()["rng"]
         with pytest.raises(ValueError, match="rng"):
-            trials._agent("teacher", "lift", env, None, "truth", None)
+            trials.make_agent(config, "teacher", "lift", env, None, None)
     finally:
         env.close()
 
 
 def test_trial_plan_is_seeded_and_paired():
-    a, b = trials.trial_plan(3, seed=4), trials.trial_plan(3, seed=4)
+    config = tiny_config(**{"performance.trials": 3, "seed": 4})
+    a, b = trials.trial_plan(config), trials.trial_plan(config)
     assert a == b
-    assert trials.trial_plan(3, seed=5) != a
+    assert trials.trial_plan(config.replace({"seed": 5})) != a
     for row in performance.ROWS:
         student = [p["start"] for p in a if p["row"] == row and p["policy"] == "student"]
         teacher = [p["start"] for p in a if p["row"] == row and p["policy"] == "teacher"]
@@ -308,11 +341,11 @@ def test_trial_plan_is_seeded_and_paired():
 
 # ------------------------------------------------------------------------------ run folder state
 def test_run_state_refuses_other_settings_and_accepts_fresh(tmp_path):
-    base = tiny_config().as_dict()
+    base = tiny_config().to_dict()
     state = RunState(tmp_path, base)
     state.finish("streams", {"steps": 1})
-    other = tiny_config(trials=2, seed=7).as_dict()
-    with pytest.raises(ValueError, match=r"other settings \(seed, trials\)"):
+    other = tiny_config(**{"performance.trials": 2, "seed": 7}).to_dict()
+    with pytest.raises(ValueError, match=r"other settings \(performance\.trials, seed\)"):
         RunState(tmp_path, other)
     # Refusing leaves the folder's state alone.
     assert RunState(tmp_path, base).done("streams")
@@ -330,11 +363,9 @@ def test_run_state_refuses_a_corrupt_file(tmp_path):
 
 def test_run_state_resumes_with_network_settings(tmp_path):
     """A run with associator settings (a tuple among them) resumes in its own folder."""
-    config = tiny_config(network=(("hidden_shape", (8, 24)), ("eta", 0.002))).as_dict()
-    RunState(tmp_path, config).finish("streams", {})
-    assert RunState(
-        tmp_path, tiny_config(network=(("hidden_shape", (8, 24)), ("eta", 0.002))).as_dict()
-    ).done("streams")
+    changes = {"network.hidden_shape": (8, 24), "network.eta": 0.002}
+    RunState(tmp_path, tiny_config(**changes).to_dict()).finish("streams", {})
+    assert RunState(tmp_path, tiny_config(**changes).to_dict()).done("streams")
 
 
 # ------------------------------------------------------------------------------ command line

@@ -1,5 +1,5 @@
 """Interrupted learning and stream generation resume to exactly the result of an uninterrupted run
-(``peoplebot_sim.learning.train`` and ``peoplebot_sim.streams.generate_resumable``)."""
+(``imitation.learning.train`` and ``imitation.streams.generate_resumable``)."""
 
 import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
@@ -12,8 +12,12 @@ import pytest
 
 from associator import encoding, persistence
 from associator.hierarchy import HierarchicalAssociator
-from peoplebot_sim import learning, streams
-from peoplebot_sim.streams import TeacherStream, generate_resumable
+from associator.network import Associator
+from imitation import learning, streams
+from imitation.streams import TeacherStream, generate_resumable
+from perception.wallframe import ArenaGeometry
+
+ARENA = ArenaGeometry()
 
 
 class Interrupt(KeyboardInterrupt):
@@ -59,14 +63,16 @@ def test_interrupted_training_resumes_bit_identical(
     """Training stopped inside the third chunk (two checkpoints written) and started again with a
     fresh model ends with the same weights, step count and random state (and, for the
     hierarchical associator, word links and word statistics) as one uninterrupted call."""
-    encoder = encoding.VisionEncoder()
+    encoder = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
     n = len(teacher_stream)
     chunk = 400
 
     def fresh():
         if kind == "paper":
             return small_associator(n)
-        return HierarchicalAssociator(hidden_shape=(6, 12), n_steps_total=n, rng=0)
+        return HierarchicalAssociator(
+            lower=Associator(hidden_shape=(6, 12), n_steps_total=n, rng=0)
+        )
 
     def train(checkpoint, chunk_size):
         return learning.train(
@@ -110,7 +116,7 @@ def test_interrupted_training_resumes_bit_identical(
 def test_training_is_independent_of_chunk_size(teacher_stream, tmp_path, small_associator):
     """Odd chunk sizes (boundaries inside directive changes) give the same network, including the
     motion-inferred directives, which need history across the boundary."""
-    encoder = encoding.VisionEncoder()
+    encoder = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
     n = len(teacher_stream)
     whole = learning.train(
         small_associator(n),
@@ -136,7 +142,7 @@ def test_training_is_independent_of_chunk_size(teacher_stream, tmp_path, small_a
 def test_encode_stream_chunks_match_the_whole(teacher_stream):
     """encode_stream over [start, stop) equals the same rows of the whole stream's encoding, for
     both motor sources."""
-    encoder = encoding.VisionEncoder()
+    encoder = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
     for source in ("teacher", "vision"):
         whole = learning.encode_stream(teacher_stream, encoder, source)
         for start, stop in ((0, 1), (1, 2), (2, 301), (777, 1500)):
@@ -148,7 +154,7 @@ def test_encode_stream_chunks_match_the_whole(teacher_stream):
 def test_training_refuses_a_checkpoint_with_other_hyper_parameters(
     teacher_stream, tmp_path, small_associator
 ):
-    encoder = encoding.VisionEncoder()
+    encoder = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
     n = len(teacher_stream)
     path = tmp_path / "net.npz"
     learning.train(
@@ -163,7 +169,7 @@ def test_training_refuses_a_checkpoint_with_other_hyper_parameters(
 def test_training_refuses_a_checkpoint_longer_than_the_stream(
     teacher_stream, tmp_path, small_associator
 ):
-    encoder = encoding.VisionEncoder()
+    encoder = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
     n = len(teacher_stream)
     path = tmp_path / "net.npz"
     learning.train(small_associator(n), teacher_stream, path, encoder=encoder, progress=False)
@@ -176,7 +182,9 @@ def test_training_refuses_a_checkpoint_longer_than_the_stream(
 
 def test_unknown_motor_source_is_refused_by_name(teacher_stream):
     with pytest.raises(ValueError, match="telepathy.*teacher, vision"):
-        learning.encode_stream(teacher_stream, encoding.VisionEncoder(), "telepathy")
+        learning.encode_stream(
+            teacher_stream, encoding.VisionEncoder(half_side_m=ARENA.half_side_m), "telepathy"
+        )
 
 
 # ------------------------------------------------------------------------------ streams

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
+from imitation.performance import make_action
 from peoplebot_sim import directives, task
-from peoplebot_sim.performance import make_action
 from perception.odometry import DriveGeometry, WheelOdometry
 from perception.wallframe import wrap_degrees
 

@@ -13,8 +13,8 @@ from perception.synthetic import render_markers, true_corners
 
 LAYOUT = default_layout()
 BY_ID = {p.marker_id: p for p in LAYOUT}
-# The most accurate corners on these anti-aliased synthetic images (perception/NOTES.md); the
-# default configuration is tuned on rendered frames and checked in test_rendered_perception.py.
+# The most accurate corners on these anti-aliased synthetic images (docs/perception.md); the
+# default configuration is tuned on rendered frames and checked on rendered frames in test_sim_env.py.
 ACCURATE = DetectorConfig(corner_refinement="apriltag", threshold_windows_px=(3, 13, 23))
 
 

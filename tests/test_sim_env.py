@@ -16,9 +16,9 @@ from absl.testing import absltest
 from dm_control import composer, mjcf
 from dm_env import test_utils
 
+from imitation.streams import StreamGenerator
 from peoplebot_sim import cameras, directives, task
 from peoplebot_sim.rendering import FrameRenderer
-from peoplebot_sim.streams import StreamGenerator
 from perception import layout
 from perception.markers import DetectorConfig
 from perception.pantilt import head_camera
@@ -34,16 +34,6 @@ def random_actions(env, n: int, seed: int):
     rng = np.random.default_rng(seed)
     for _ in range(n):
         yield rng.uniform(spec.minimum, spec.maximum)
-
-
-def plain_environment(config: task.TaskConfig, seed: int) -> composer.Environment:
-    """Returns dm-control's own composer environment on a fresh task (no fused stepping)."""
-    return composer.Environment(
-        task.ImitationTask(config),
-        random_state=seed,
-        strip_singleton_obs_buffer_dim=True,
-        raise_exception_on_physics_error=True,
-    )
 
 
 # ------------------------------------------------------------------------------ dm_env conformance
@@ -110,27 +100,6 @@ def test_consecutive_observations_do_not_share_memory():
             assert not np.shares_memory(value, previous[name]), name
         previous = current
     env.close()
-
-
-def test_fused_step_gives_the_same_trajectory_as_the_plain_composer_environment():
-    config = task.TaskConfig(cameras=("overhead",), width=32, height=24)
-    fused = task.load(config, seed=3)
-    fused._fused = True  # exercise the fused path itself (see the test below)
-    plain = plain_environment(config, seed=3)
-    for env in (fused, plain):
-        env.reset()
-    for action in random_actions(fused, 150, seed=1):
-        a, b = fused.step(action), plain.step(action)
-        assert a.step_type == b.step_type
-        for name in a.observation:
-            np.testing.assert_array_equal(a.observation[name], b.observation[name], name)
-    np.testing.assert_array_equal(fused.physics.data.qpos, plain.physics.data.qpos)
-    np.testing.assert_array_equal(fused.physics.data.qvel, plain.physics.data.qvel)
-    assert fused.physics.data.time == plain.physics.data.time
-
-
-def test_load_returns_an_environment_that_fuses_its_substeps():
-    assert task.load(seed=0)._fused
 
 
 # ------------------------------------------------------------------------------------- bad input
@@ -417,13 +386,13 @@ def test_contact_detector_sees_the_table_the_other_robot_and_walls(
     env = task.load(seed=0)
     env.task.set_start(student_pose=student_pose, teacher_pose=teacher_pose)
     env.reset()
-    assert not task.robot_touches_obstacle(env.physics, env.task.student, env.task)
+    assert not env.task.touches_obstacle(env.physics, env.task.student)
     action = np.zeros(6)
     action[0] = 0.3
     touched = False
     for _ in range(80):
         env.step(action)
-        touched = task.robot_touches_obstacle(env.physics, env.task.student, env.task)
+        touched = env.task.touches_obstacle(env.physics, env.task.student)
         if touched:
             break
     env.close()

@@ -16,6 +16,7 @@ from dm_control import mjcf
 from peoplebot_sim import assets, directives
 from peoplebot_sim.task import ImitationTask, TaskConfig
 from perception import layout
+from perception.wallframe import ArenaGeometry
 
 MODEL_FILES = {
     "peoplebot": assets.PEOPLEBOT_XML,
@@ -59,6 +60,37 @@ def warning_counts(data: mujoco.MjData) -> dict[str, int]:
     return {
         mujoco.mjtWarning(i).name: int(w.number) for i, w in enumerate(data.warning) if w.number
     }
+
+
+# ------------------------------------------------------------------------------- one geometry
+def test_the_models_agree_with_the_arena_geometry():
+    """The walls' inner faces, the table's footprint and top, and the object in the compiled scene
+    are where ``ArenaGeometry`` (the one definition, which the teacher, the success rules and the
+    figures read) puts them."""
+    task, physics = composed_scene()
+    arena = task.geometry
+    assert arena == ArenaGeometry()
+    h = arena.half_side_m
+    walls = {"top": (1, +1), "bottom": (1, -1), "right": (0, +1), "left": (0, -1)}
+    for wall, (axis, sign) in walls.items():
+        geom = physics.named.model.geom_size[f"wall_{wall}"]
+        centre = physics.named.data.geom_xpos[f"wall_{wall}"]
+        inner_face = centre[axis] - sign * geom[axis]
+        assert inner_face == pytest.approx(sign * h, abs=1e-9), wall
+    # The table's footprint: the union of its geoms' boxes, seen from above.
+    x0, x1, y0, y1 = arena.table_box
+    table = [n for n in element_names(physics.model.ptr, "geom") if n.startswith("table/")]
+    lows = np.min(
+        [physics.named.data.geom_xpos[n] - physics.named.model.geom_size[n] for n in table], 0
+    )
+    highs = np.max(
+        [physics.named.data.geom_xpos[n] + physics.named.model.geom_size[n] for n in table], 0
+    )
+    np.testing.assert_allclose([lows[0], highs[0], lows[1], highs[1]], [x0, x1, y0, y1], atol=1e-9)
+    assert highs[2] == pytest.approx(arena.table_height_m, abs=1e-9)
+    # The object stands on the table's top, on its footprint.
+    x, y, _ = physics.named.data.xpos["object/object"]
+    assert x0 < x < x1 and y0 < y < y1
 
 
 # ---------------------------------------------------------------------------------------- compile

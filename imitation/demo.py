@@ -11,8 +11,8 @@ import imageio.v2 as imageio
 import numpy as np
 from tqdm import tqdm
 
+from imitation.overlay import annotate
 from peoplebot_sim import directives
-from peoplebot_sim.overlay import annotate
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import load
 

@@ -34,11 +34,7 @@ class RunState:
                     f"{self.path} is corrupt ({error}); delete it or pass --fresh"
                 ) from None
             if saved.get("config") != config:
-                changed = sorted(
-                    k
-                    for k in set(saved.get("config", {})) | set(config)
-                    if saved.get("config", {}).get(k) != config.get(k)
-                )
+                changed = differing_keys(saved.get("config", {}), config)
                 raise ValueError(
                     f"{self.folder} holds a run with other settings ({', '.join(changed)}); use "
                     "another --out folder or --fresh to start over"
@@ -65,3 +61,16 @@ class RunState:
         tmp = self.path.with_suffix(".json.partial")
         tmp.write_text(json.dumps(self.data, indent=2))
         os.replace(tmp, self.path)
+
+
+def differing_keys(a: dict, b: dict, prefix: str = "") -> list[str]:
+    """Returns the dotted keys whose values differ between two nested dicts, sorted."""
+    out = []
+    for key in sorted(set(a) | set(b)):
+        name = f"{prefix}{key}"
+        x, y = a.get(key), b.get(key)
+        if isinstance(x, dict) and isinstance(y, dict):
+            out += differing_keys(x, y, f"{name}.")
+        elif x != y:
+            out.append(name)
+    return out

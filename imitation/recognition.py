@@ -14,23 +14,14 @@ from tqdm import tqdm
 
 from associator import encoding
 from associator.network import Associator
+from imitation.learning import encode_stream, inferred_directives
+from imitation.observers import Calibration, StudentVision, pose_or_nan
+from imitation.performance import make_action
+from imitation.results import CameraRecognition, ConfusionTable, ErrorSummary
+from imitation.streams import TeacherStream
 from peoplebot_sim import directives
-from peoplebot_sim.learning import encode_stream, inferred_directives
-from peoplebot_sim.observers import Calibration, StudentVision, pose_or_nan
-from peoplebot_sim.performance import make_action
-from peoplebot_sim.streams import TeacherStream
-from peoplebot_sim.task import load
+from peoplebot_sim.task import TaskConfig, load
 from perception.wallframe import world_to_wall_batch
-
-#: The paper's Table I: rows performing, columns recognised (fractions) and the total counts.
-PAPER_TABLE_I = {
-    "confusion": {
-        "go": {"go": 0.5451, "pick": 0.4426, "lift": 0.0123},
-        "pick": {"go": 0.0308, "pick": 0.9647, "lift": 0.0045},
-        "lift": {"go": 0.0089, "pick": 0.1223, "lift": 0.8688},
-    },
-    "counts": {"go": 746211, "pick": 111495, "lift": 142195},
-}
 
 
 def confusion_counts(true_words: np.ndarray, recognised: np.ndarray) -> np.ndarray:
@@ -41,27 +32,9 @@ def confusion_counts(true_words: np.ndarray, recognised: np.ndarray) -> np.ndarr
     ).reshape(n, n)
 
 
-def table(counts: np.ndarray) -> dict:
-    """Returns the confusion as nested dicts: fractions per true word, and counts."""
-    words = directives.WORDS
-    totals = counts.sum(axis=1)
-    return {
-        "confusion": {
-            t: {
-                r: float(counts[i, j] / totals[i]) if totals[i] else None
-                for j, r in enumerate(words)
-            }
-            for i, t in enumerate(words)
-        },
-        "counts": {t: int(totals[i]) for i, t in enumerate(words)},
-        "counts_matrix": {
-            t: {r: int(counts[i, j]) for j, r in enumerate(words)} for i, t in enumerate(words)
-        },
-    }
-
-
-#: The read-outs reported: the paper's, and the motor area weighted by 3 in the bottom-up pass.
-READOUTS = {"paper": 1.0, "motor_weighted": 3.0}
+def table(true_words: np.ndarray, recognised: np.ndarray) -> ConfusionTable:
+    """Returns the confusion table of recognised word indices against the true ones."""
+    return ConfusionTable.from_counts(confusion_counts(true_words, recognised))
 
 
 def recognise_stream(
@@ -71,12 +44,13 @@ def recognise_stream(
     motor_source: str = "teacher",
     dt: float = 0.1,
     chunk: int = 200_000,
-    motor_gain: float = 1.0,
+    motor_weight: float = 1.0,
     over_time: bool = False,
     seen: np.ndarray | None = None,
 ) -> np.ndarray:
     """Returns the recognised word index for every step of a stream (language omitted).
 
+    ``motor_weight``: the read-out's weight on the motor area (1: the paper's read-out).
     ``over_time``: recognise with the hierarchical associator's belief carried from step to step
     (``HierarchicalAssociator.recognise_sequence``) instead of step by step. ``seen``: (n,) bool,
     the steps on which the teacher was seen (the others, whose poses may be NaN, get the index -1;
@@ -102,12 +76,12 @@ def recognise_stream(
             vision, _, motor, _ = encode_stream(stream.rows(rows), encoder, motor_source, dt)
         if over_time:
             result = model.recognise_sequence(
-                vision, motor, motor_gain, seen=seen[start:stop], state=state
+                vision, motor, motor_weight=motor_weight, seen=seen[start:stop], state=state
             )
             state = result.state
             out[rows] = [vocabulary[w] for w in result.words[seen[start:stop]]]
         else:
-            words = model.recognise_batch(vision, motor, motor_gain).words
+            words = model.recognise_batch(vision, motor, motor_weight=motor_weight).words
             out[rows] = [vocabulary[w] for w in words]
     return out
 
@@ -135,14 +109,18 @@ def watch_with_vision(
     width: int = 320,
     height: int = 240,
     progress: bool = True,
+    task: TaskConfig = TaskConfig(),
 ) -> ObservedStream:
-    """Runs the environment with the teacher looping and the student watching through its camera
-    (``vision_mode`` 'overhead' or 'head'); returns what it saw beside the truth."""
+    """Runs the environment (``task``, with the teacher) with the teacher looping and the student
+    watching through its camera (``vision_mode`` 'overhead' or 'head', frames of ``width`` x
+    ``height`` pixels); returns what it saw beside the truth."""
     if vision_mode not in ("overhead", "head"):
         raise ValueError(f"vision_mode must be 'overhead' or 'head', got {vision_mode!r}")
     if n_steps <= 0:
         raise ValueError(f"n_steps must be positive, got {n_steps}")
-    env = load(seed=seed, cameras=(vision_mode,), width=width, height=height)
+    env = load(
+        task, seed=seed, with_teacher=True, cameras=(vision_mode,), width=width, height=height
+    )
     timestep = env.reset()
     calibration = Calibration(env.physics, width, height)
     vision = StudentVision(vision_mode, calibration, watch_teacher=True)
@@ -197,14 +175,14 @@ def recognise_observed(
     encoder,
     motor_source: str,
     dt: float = 0.1,
-    motor_gain: float = 1.0,
+    motor_weight: float = 1.0,
     over_time: bool = False,
-) -> dict:
+) -> CameraRecognition:
     """Recognition on the steps the student saw, from its estimates and, paired, from the truth
     (``over_time``: see ``recognise_stream``; the truth then has the same gaps as the camera)."""
     seen = observed.seen
     rows = np.flatnonzero(seen)
-    out = {"steps": int(len(seen)), "seen_fraction": float(seen.mean()) if len(seen) else 0.0}
+    tables = {}
     for name, stream in (("vision", observed.observed), ("truth_same_steps", observed.truth)):
         stream = stream.rows(slice(None))
         if motor_source == "vision":
@@ -215,9 +193,23 @@ def recognise_observed(
             encoder,
             "teacher",
             dt,
-            motor_gain=motor_gain,
+            motor_weight=motor_weight,
             over_time=over_time,
             seen=seen,
         )[rows]
-        out[name] = table(confusion_counts(stream.word[rows], recognised))
-    return out
+        tables[name] = table(stream.word[rows], recognised)
+    return CameraRecognition(
+        steps=int(len(seen)),
+        seen_fraction=float(seen.mean()) if len(seen) else 0.0,
+        vision=tables["vision"],
+        truth_same_steps=tables["truth_same_steps"],
+    )
+
+
+def teacher_position_error_cm(observed: ObservedStream) -> ErrorSummary:
+    """Returns the tracked teacher's position error (cm) on the steps it was seen."""
+    seen = observed.seen
+    error = np.hypot(
+        *(observed.observed.pose_world[seen, :2] - observed.truth.pose_world[seen, :2]).T
+    )
+    return ErrorSummary(float(np.median(error) * 100), float(np.percentile(error, 95) * 100))

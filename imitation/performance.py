@@ -30,17 +30,17 @@ import numpy as np
 
 from associator import encoding
 from associator.network import Associator
-from peoplebot_sim import directives
-from peoplebot_sim.observers import StudentVision, pose_or_nan
-from peoplebot_sim.task import ImitationTask, robot_touches_obstacle
-from peoplebot_sim.teacher import TABLE_BOX, Teacher
+from imitation.observers import StudentVision, pose_or_nan
+from peoplebot_sim.teacher import Teacher, TeacherConfig
+from perception.drive import DriveSpeeds
 from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall, wrap_degrees
 
 ROWS = ("go", "pick", "pick_other_wall", "lift")
 ROW_WORD = {"go": "go", "pick": "pick", "pick_other_wall": "pick", "lift": "lift"}
+#: The policies evaluated: the paper's network, the teacher (the reference), the hierarchical one.
 POLICIES = ("student", "teacher", "student_hierarchical")
-#: Student policies and the network file each drives with (in the run folder).
-STUDENT_NETWORKS = {"student": "network.npz", "student_hierarchical": "hierarchical.npz"}
+#: How the student's motor area drives its wheels: the graded activations or the winning directive.
+DRIVE_MODES = ("graded", "directive")
 #: The paper's Fig. 4 start: top middle of the arena, facing up (world x, y metres, yaw radians).
 FIG4_START = (0.0, 0.6, math.pi / 2)
 
@@ -49,7 +49,6 @@ FIG4_START = (0.0, 0.6, math.pi / 2)
 class SuccessConfig:
     """The success definitions' numbers (metres, degrees, seconds)."""
 
-    seconds: float = 60.0
     go_min_wall_areas: int = 2
     go_window_s: float = 10.0
     go_min_window_travel_m: float = 0.2
@@ -81,7 +80,7 @@ class StudentAgent:
         vision: StudentVision,
         encoder: encoding.VisionEncoder,
         action_spec,
-        drive: directives.DriveSpeeds = directives.DriveSpeeds(),
+        drive: DriveSpeeds = DriveSpeeds(),
         graded: bool = False,
         arena: ArenaGeometry = ArenaGeometry(),
     ):
@@ -136,9 +135,10 @@ class TeacherAgent:
         self,
         word: str,
         action_spec,
-        drive: directives.DriveSpeeds = directives.DriveSpeeds(),
+        drive: DriveSpeeds = DriveSpeeds(),
         arena: ArenaGeometry = ArenaGeometry(),
         rng=None,
+        teacher_config: TeacherConfig = TeacherConfig(),
     ):
         self.word, self.spec, self.drive, self.arena, self._rng = (
             word,
@@ -147,10 +147,11 @@ class TeacherAgent:
             arena,
             rng,
         )
+        self.teacher_config = teacher_config
         self.reset()
 
     def reset(self, timestep=None, start_pose=None) -> None:
-        self.controller = Teacher(arena=self.arena, rng=self._rng)
+        self.controller = Teacher(self.teacher_config, arena=self.arena, rng=self._rng)
         self.controller.begin(self.word, loop=False)
         self.directive, self.motor = None, None
 
@@ -168,14 +169,14 @@ def sample_start(
     row: str,
     rng: np.random.Generator,
     arena: ArenaGeometry = ArenaGeometry(),
-    task: ImitationTask | None = None,
+    teacher: TeacherConfig = TeacherConfig(),
 ) -> tuple[tuple, str]:
     """Returns a random start ``(x, y, yaw)`` for a row and the wall its success refers to."""
     if row == "go":
         h = arena.half_side_m - 0.6
         while True:
             x, y = rng.uniform(-h, h, size=2)
-            if not (abs(x) < 0.5 + 0.6 and y > TABLE_BOX[2] - 0.6):
+            if arena.clear_of_table(x, y, 0.6):
                 return (float(x), float(y), float(rng.uniform(-math.pi, math.pi))), "top"
     if row in ("pick", "pick_other_wall"):
         wall = "top" if row == "pick" else str(rng.choice(["right", "bottom", "left"]))
@@ -190,7 +191,7 @@ def sample_start(
             if world_to_wall(*start, arena).wall == wall:
                 return start, wall
     if row == "lift":
-        dock = Teacher(arena=arena).dock_pose
+        dock = Teacher(teacher, arena=arena).dock_pose
         return (
             dock[0] + float(rng.normal(0, 0.02)),
             dock[1] + float(rng.normal(0, 0.02)),
@@ -199,9 +200,11 @@ def sample_start(
     raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
 
 
-def dock_pose_at(wall: str, arena: ArenaGeometry = ArenaGeometry()) -> tuple:
+def dock_pose_at(
+    wall: str, arena: ArenaGeometry = ArenaGeometry(), teacher: TeacherConfig = TeacherConfig()
+) -> tuple:
     """Returns the docked pose ``(x, y, yaw)`` in front of the middle of ``wall``."""
-    return wall_to_world(WallPose(Teacher(arena=arena).config.dock_x_m, 0.0, 0.0, wall), arena)
+    return wall_to_world(WallPose(teacher.dock_x_m, 0.0, 0.0, wall), arena)
 
 
 class SuccessMonitor:
@@ -214,6 +217,7 @@ class SuccessMonitor:
         dt: float,
         config: SuccessConfig = SuccessConfig(),
         arena: ArenaGeometry = ArenaGeometry(),
+        teacher: TeacherConfig = TeacherConfig(),
     ):
         if row not in ROWS:
             raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
@@ -222,8 +226,8 @@ class SuccessMonitor:
         self.reached = False
         self.areas: set[str] = set()
         self.positions: list[tuple[float, float]] = []
-        self.dock = dock_pose_at(wall, arena)
-        x0, x1, y0, y1 = TABLE_BOX
+        self.dock = dock_pose_at(wall, arena, teacher)
+        x0, x1, y0, y1 = arena.table_box
         self.docked_gap = y0 - self.dock[1]  # the docked robot's centre to the table's front edge
 
     def update(self, true_pose, touching: bool) -> bool:
@@ -241,7 +245,7 @@ class SuccessMonitor:
             if math.hypot(dx, dy) <= c.dock_position_tol_m and heading <= c.dock_heading_tol_deg:
                 self.reached = True
         elif self.row == "lift":
-            x0, x1, y0, y1 = TABLE_BOX
+            x0, x1, y0, y1 = self.arena.table_box
             gap = math.hypot(max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1))
             facing = abs(float(wrap_degrees(math.degrees(math.atan2(-y, -x) - yaw))))
             if gap >= self.docked_gap + c.lift_min_gap_m and facing <= c.lift_heading_tol_deg:
@@ -291,11 +295,13 @@ def run_trial(
     start,
     wall: str,
     *,
+    seconds: float = 60.0,
     config: SuccessConfig = SuccessConfig(),
     stop_on_success: bool = True,
     frame_callback=None,
 ) -> TrialResult:
-    """Runs one trial of ``agent`` in a student-only environment ``env`` from ``start``.
+    """Runs one trial of ``agent`` in a student-only environment ``env`` from ``start``, for at most
+    ``seconds``.
 
     ``frame_callback(env, agent)`` is called after every step (for videos).
     """
@@ -304,9 +310,9 @@ def run_trial(
     timestep = env.reset()
     agent.reset(timestep, start)
     dt = task.control_timestep
-    monitor = SuccessMonitor(row, wall, dt, config)
+    monitor = SuccessMonitor(row, wall, dt, config, task.geometry, task.config.teacher)
     trace, estimates, chosen = [], [], []
-    n_steps = int(round(config.seconds / dt))
+    n_steps = int(round(seconds / dt))
     for _ in range(n_steps):
         action = agent.step(timestep, dt)
         timestep = env.step(action)
@@ -314,7 +320,7 @@ def run_trial(
         trace.append(true_pose)
         estimates.append(pose_or_nan(getattr(agent, "own_pose", true_pose)))
         chosen.append(agent.directive)
-        touching = robot_touches_obstacle(env.physics, task.student, task)
+        touching = task.touches_obstacle(env.physics, task.student)
         succeeded = monitor.update(true_pose, touching)
         if frame_callback is not None:
             frame_callback(env, agent)

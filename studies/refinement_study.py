@@ -1,6 +1,6 @@
-"""Measures ArUco corner refinement methods on synthetic warped markers (the numbers in NOTES.md).
+"""Measures ArUco corner refinement methods on synthetic warped markers (the numbers in docs/perception.md).
 
-Run: ``python -m perception.refinement_study [--samples N] [--seed S]``. Prints a JSON list with,
+Run: ``python -m studies.refinement_study [--samples N] [--seed S]``. Prints a JSON list with,
 per viewpoint, image noise and refinement method: the detection rate, the median corner error
 (pixels), the median single-marker IPPE position (cm) and rotation (deg) errors, the median and
 95th-percentile planar robot pose errors after the level-robot fit (cm, deg), and the mean detection

@@ -27,7 +27,7 @@ def _positive_float(text: str) -> float:
 
 
 def _cmd_demo(args) -> int:
-    from peoplebot_sim.demo import DemoConfig, run_demo
+    from imitation.demo import DemoConfig, run_demo
 
     config = DemoConfig(
         seconds=args.seconds,
@@ -56,7 +56,7 @@ def _cmd_demo(args) -> int:
 
 
 def _cmd_track_bench(args) -> int:
-    from peoplebot_sim import track_bench
+    from imitation import track_bench
 
     report = track_bench.run(
         args.samples, args.width, args.height, args.seed, args.out, progress=not args.quiet
@@ -66,36 +66,51 @@ def _cmd_track_bench(args) -> int:
     return 0
 
 
-def _cmd_reproduce(args) -> int:
-    from peoplebot_sim.reproduce import ReproduceConfig, run
+#: Command-line options of ``reproduce`` and the config keys they set.
+REPRODUCE_OPTIONS = {
+    "seed": "seed",
+    "vision": "vision.mode",
+    "motor_source": "learning.motor_source",
+    "train_steps": "learning.train_steps",
+    "test_steps": "learning.test_steps",
+    "vision_test_steps": "vision.test_steps",
+    "trials": "performance.trials",
+    "trial_seconds": "performance.trial_seconds",
+    "workers": "workers",
+    "drive": "performance.drive",
+}
 
-    overrides = {
-        k: getattr(args, k)
-        for k in (
-            "seed",
-            "vision",
-            "motor_source",
-            "train_steps",
-            "test_steps",
-            "vision_test_steps",
-            "trials",
-            "trial_seconds",
-            "workers",
-            "drive",
-        )
-        if getattr(args, k) is not None
+
+def reproduce_config(args):
+    """Returns the run configuration the ``reproduce`` options ask for: the defaults or the quick
+    preset, then ``--config``'s file, then the other options."""
+    from imitation import config as run_config
+
+    config = run_config.RunConfig.quick() if args.quick else run_config.RunConfig()
+    if args.config is not None:
+        config = run_config.load(args.config, base=config)
+    changes = {
+        key: getattr(args, option)
+        for option, key in REPRODUCE_OPTIONS.items()
+        if getattr(args, option) is not None
     }
     if args.no_videos:
-        overrides["videos"] = False
+        changes["videos.enabled"] = False
     if args.paper_only:
-        overrides["hierarchical"] = False
-    config = ReproduceConfig.quick(**overrides) if args.quick else ReproduceConfig(**overrides)
+        changes["hierarchical.enabled"] = False
+    return config.replace(changes)
+
+
+def _cmd_reproduce(args) -> int:
+    from imitation.reproduce import run
+
+    config = reproduce_config(args)
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
-        f"{config.vision}-{config.motor_source}-seed{config.seed}"
+        f"{config.vision.mode}-{config.learning.motor_source}-seed{config.seed}"
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
-    print(f"run folder: {out} (results.json, results.md, figures/, videos)")
+    print(f"run folder: {out} (config.toml, results.json, results.md, figures/, videos)")
     return 0 if results else 1
 
 
@@ -155,7 +170,14 @@ def build_parser() -> argparse.ArgumentParser:
     rep.add_argument(
         "--quick",
         action="store_true",
-        help="the same stages at a small scale (about 3 minutes on 2 cores)",
+        help="the 'quick' preset: the same stages at a small scale (about a minute on 2 cores)",
+    )
+    rep.add_argument(
+        "--config",
+        type=pathlib.Path,
+        default=None,
+        help="a run configuration (TOML or JSON, e.g. a run folder's config.toml; keys left out "
+        "keep the defaults, or the quick preset's with --quick); the other options override it",
     )
     rep.add_argument(
         "--vision",

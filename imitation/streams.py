@@ -19,6 +19,7 @@ import pathlib
 
 import mujoco
 import numpy as np
+from dm_control import mjcf
 
 from peoplebot_sim import directives
 from peoplebot_sim.task import ImitationTask, TaskConfig
@@ -82,21 +83,19 @@ class StreamGenerator:
     def __init__(self, seed: int, config: TaskConfig | None = None):
         config = dataclasses.replace(config or TaskConfig(), cameras=(), with_teacher=True)
         self.task = ImitationTask(config)
-        from dm_control import mjcf
-
         self.physics = mjcf.Physics.from_mjcf_model(self.task.root_entity.mjcf_model)
         self.task.after_compile(self.physics, np.random.RandomState(seed))
         self.task.initialize_episode(self.physics, np.random.RandomState(seed))
         bind = self.physics.bind
         model = self.physics.model
         frozen_roots = set()
-        for entity in (self.task.student, self.task._object):
+        for entity in (self.task.student, self.task.grasp_object):
             for geom in entity.mjcf_model.find_all("geom"):
                 bind(geom).contype = 0
                 bind(geom).conaffinity = 0
             body = (
                 entity.mjcf_model.find_all("body")[0]
-                if entity is self.task._object
+                if entity is self.task.grasp_object
                 else entity.root_body
             )
             frozen_roots.add(int(model.body_rootid[bind(body).element_id]))

@@ -17,8 +17,8 @@ from tqdm import tqdm
 from associator import encoding, persistence
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
+from imitation.streams import TeacherStream
 from peoplebot_sim import directives
-from peoplebot_sim.streams import TeacherStream
 from perception.motion import DirectiveConfig, infer_directives_batch
 
 MOTOR_SOURCES = ("teacher", "vision")

@@ -19,11 +19,14 @@ import time
 
 import mujoco
 import numpy as np
+from dm_control import mjcf
 from tqdm import tqdm
 
+from imitation.observers import Calibration, StudentVision
+from imitation.performance import make_action
 from peoplebot_sim import cameras
 from peoplebot_sim.rendering import FrameRenderer
-from peoplebot_sim.task import ImitationTask, TaskConfig
+from peoplebot_sim.task import ImitationTask, TaskConfig, load
 from perception import layout as marker_layout
 from perception.markers import DetectorConfig
 from perception.pantilt import PanTiltLimits, aim_at, head_camera
@@ -43,7 +46,7 @@ def _teacher_pose(task: ImitationTask, rng, category: str) -> tuple:
             depth = h - rng.uniform(0.45, 0.7)
             wall = rng.integers(4)
             x, y = [(along, depth), (depth, along), (along, -depth), (-depth, along)][wall]
-            if not (abs(x) < 0.5 + 0.45 and y > 1.6 - 0.45):
+            if task.geometry.clear_of_table(x, y, 0.45):
                 return x, y, rng.uniform(-math.pi, math.pi)
     if category == "corner":
         sx, sy = rng.choice([-1, 1], size=2)
@@ -75,7 +78,7 @@ def _head_student(task, rng, teacher) -> tuple | None:
         bearing = rng.uniform(-math.pi, math.pi)
         x = teacher[0] + distance * math.cos(bearing)
         y = teacher[1] + distance * math.sin(bearing)
-        if abs(x) > h or abs(y) > h or (abs(x) < 0.95 and y > 1.15):
+        if abs(x) > h or abs(y) > h or not task.geometry.clear_of_table(x, y, 0.45):
             continue
         facing = math.atan2(teacher[1] - y, teacher[0] - x) + math.radians(rng.uniform(-40, 40))
         return x, y, facing
@@ -96,8 +99,6 @@ def run(
         raise ValueError(f"n_samples must be positive, got {n_samples}")
     rng = np.random.default_rng(seed)
     task = ImitationTask(TaskConfig(width=width, height=height))
-    from dm_control import mjcf
-
     physics = mjcf.Physics.from_mjcf_model(task.root_entity.mjcf_model)
     m, d = physics.model.ptr, physics.data.ptr
     pan_qpos = physics.model.jnt_qposadr[physics.model.name2id("student/head_pan", "joint")]
@@ -216,16 +217,13 @@ def sequence_timing(
 ) -> dict:
     """Times tracking over time as the experiments use it, per viewpoint: the environment's camera
     observable renders each control step while the teacher loops, and the student's vision
-    (:class:`~peoplebot_sim.observers.StudentVision`, ``Tracker.update`` searching each frame)
+    (:class:`~imitation.observers.StudentVision`, ``Tracker.update`` searching each frame)
     follows the robots - both from the overhead camera; the teacher from the head camera, with the
     student's odometry and the pan-tilt controller steering the head. Returns per viewpoint the
     steps/s without the camera, with it, and with tracking, the render and tracking times per
     frame, tracking's share of the render time and the tracked teacher's position error. Tracking
     is timed around each vision update; rendering is the environment step's time with the camera
     less its time without."""
-    from peoplebot_sim.observers import Calibration, StudentVision
-    from peoplebot_sim.performance import make_action
-    from peoplebot_sim.task import load
 
     def run_loop(view, track):  # returns env.step seconds, vision seconds, position errors
         env = load(seed=seed, cameras=(view,) if view else (), width=width, height=height)

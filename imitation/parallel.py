@@ -1,0 +1,46 @@
+"""Parallel stages: work split over spawned processes, with one progress bar fed by files."""
+
+from __future__ import annotations
+
+import concurrent.futures
+import multiprocessing
+import pathlib
+import time
+
+from tqdm import tqdm
+
+
+def poll(futures: list, progress_files: list, total: int, desc: str) -> list:
+    """Shows a progress bar of the counts the workers write into ``progress_files`` until every
+    future is done; returns their results in order."""
+    bar = tqdm(total=total, desc=desc, unit="step")
+    while not all(f.done() for f in futures):
+        done = 0
+        for path in progress_files:
+            try:
+                done += int(pathlib.Path(path).read_text() or 0)
+            except (FileNotFoundError, ValueError):
+                pass
+        bar.n = done
+        bar.refresh()
+        time.sleep(1.0)
+    bar.n = total
+    bar.close()
+    return [f.result() for f in futures]
+
+
+def run_parallel(fn, jobs: list, args: tuple, workers: int, folder, desc: str, total: int) -> list:
+    """Runs ``fn(job, *args, progress_file)`` for every job in up to ``workers`` spawned processes
+    (each job's worker writes its count of finished units into its progress file, inside
+    ``folder``); returns the results in job order."""
+    folder = pathlib.Path(folder)
+    progress = [folder / f".{desc.replace(' ', '_')}.{i}.progress" for i in range(len(jobs))]
+    context = multiprocessing.get_context("spawn")
+    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        futures = [
+            pool.submit(fn, job, *args, str(p)) for job, p in zip(jobs, progress, strict=True)
+        ]
+        results = poll(futures, progress, total, desc)
+    for p in progress:
+        p.unlink(missing_ok=True)
+    return results
