@@ -1,7 +1,7 @@
 """Offscreen rendering of the simulator's cameras (headless through EGL by default).
 
-Camera frames for vision render without shadows: on the CPU, shadows cost over ten times the rest of
-the frame (320x240: about 340 frames/s without, 24 with). Videos may turn them on.
+Camera frames for vision render without shadows: on the CPU, shadows cost several times the rest of
+the frame (docs/design.md, "Benchmarks"). Videos may turn them on.
 """
 
 from __future__ import annotations

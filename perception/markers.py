@@ -34,39 +34,28 @@ CORNER_REFINEMENTS = {
 
 @dataclasses.dataclass(frozen=True)
 class DetectorConfig:
-    """How markers are found and their pose resolved.
+    """How markers are found and their pose resolved (the defaults and the measurements behind
+    them: docs/perception.md, "Detector defaults").
 
     Attributes:
-      corner_refinement: one of ``CORNER_REFINEMENTS``; "apriltag" was chosen by measurement on
-        synthetic markers at our sizes (``python -m studies.refinement_study``, docs/perception.md).
+      corner_refinement: one of ``CORNER_REFINEMENTS``.
       apriltag_offset_px: subtracted from both coordinates of corners refined by "apriltag", which
         come in the AprilTag library's pixel-edge convention (top-left pixel centre at (0.5, 0.5))
-        rather than OpenCV's pixel-centre one; measured +0.43 to +0.48 px in OpenCV 5.0. The tests
-        check corner accuracy, so a change in OpenCV shows up there.
+        rather than OpenCV's pixel-centre one.
       expected_ids: ids to report (all others are ignored); None means every id in the layout.
       ambiguity_tolerance_px: an IPPE solution is a candidate when its RMS reprojection error is
         within this many pixels of the best solution's.
       subpix_window_px: half-size of the sub-pixel corner search window, pixels (OpenCV's
-        ``cornerRefinementWinSize``); small because our markers are 20-100 pixels across.
+        ``cornerRefinementWinSize``).
       min_marker_perimeter_rate: smallest marker perimeter as a fraction of the image's larger side
-        (OpenCV's ``minMarkerPerimeterRate``). Our smallest markers (the overhead camera's top
-        plates at 320x240, about 18 pixels a side) have a rate of about 0.22; 0.15 drops the
-        floor's small contours before they cost time (OpenCV's default 0.03 keeps them).
+        (OpenCV's ``minMarkerPerimeterRate``).
       threshold_constant: subtracted from the local mean in the adaptive threshold, grey levels
-        (OpenCV's ``adaptiveThreshConstant``, default 7). The arena floor's checker differs by
-        fewer levels than the markers' black and white, so 15 keeps it out of the binary image:
-        with 7 a 320x240 overhead frame had 179 contours and detection took 1.6 ms, with 15
-        100 and 0.6 ms, every marker still found (``peoplebot track-bench``).
-      min_distance_to_border_px: markers closer than this to the image border are dropped, pixels
-        (OpenCV default 3 missed 3% of overhead markers near the edge).
-      threshold_windows_px: adaptive-threshold window sizes tried, pixels (odd, >= 3). OpenCV's
-        default tries 3, 13 and 23; crisp markers of 15-100 pixels need one pass, which halves the
-        detection time (measured by ``peoplebot track-bench``).
+        (OpenCV's ``adaptiveThreshConstant``).
+      min_distance_to_border_px: markers closer than this to the image border are dropped, pixels.
+      threshold_windows_px: adaptive-threshold window sizes tried, pixels (odd, >= 3).
       bit_pixels_per_cell, bit_margin_per_cell, error_correction_rate: how a candidate's bits are
         read (OpenCV's ``perspectiveRemovePixelPerCell``, ``perspectiveRemoveIgnoredMarginPerCell``
-        and ``errorCorrectionRate``). OpenCV's defaults (4, 0.13, 0.6) missed 5 of 216 rendered
-        overhead markers of about 18 pixels, most of them square to the image axes; 8, 0.3 and 1.0
-        found all 216.
+        and ``errorCorrectionRate``).
     """
 
     corner_refinement: str = "subpix"
