@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import pathlib
 
@@ -32,7 +33,19 @@ def policies_of(config: RunConfig) -> tuple[str, ...]:
     )
 
 
-def trial_plan(config: RunConfig, policies=None) -> list[dict]:
+@dataclasses.dataclass(frozen=True)
+class PlannedTrial:
+    """One trial to run: its row, policy, index among the row's starts, start (world x m, y m,
+    yaw rad) and the wall its success refers to."""
+
+    row: str
+    policy: str
+    index: int
+    start: tuple
+    wall: str
+
+
+def trial_plan(config: RunConfig, policies=None) -> list[PlannedTrial]:
     """Returns every trial to run: per row, ``config.performance.trials`` random starts shared by
     the policies (paired); the teacher has no reference for docking at a wall without a table."""
     policies = policies_of(config) if policies is None else policies
@@ -44,9 +57,7 @@ def trial_plan(config: RunConfig, policies=None) -> list[dict]:
             for policy in policies:
                 if policy == "teacher" and row == "pick_other_wall":
                     continue
-                plan.append(
-                    {"row": row, "policy": policy, "index": k, "start": list(start), "wall": wall}
-                )
+                plan.append(PlannedTrial(row, policy, k, tuple(start), wall))
     return plan
 
 
@@ -110,22 +121,22 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
     models, env, calibration = _worker_setup(config, networks)
     out = []
     for k, item in enumerate(plan):
-        row_index = performance.ROWS.index(item["row"])
+        row_index = performance.ROWS.index(item.row)
         agent = make_agent(
             config,
-            item["policy"],
-            performance.ROW_WORD[item["row"]],
+            item.policy,
+            performance.ROW_WORD[item.row],
             env,
-            models.get(item["policy"]),
+            models.get(item.policy),
             calibration,
-            rng=[config.seed, row_index, item["index"]],
+            rng=[config.seed, row_index, item.index],
         )
         result = performance.run_trial(
             env,
             agent,
-            item["row"],
-            tuple(item["start"]),
-            item["wall"],
+            item.row,
+            item.start,
+            item.wall,
             seconds=config.performance.trial_seconds,
             config=config.performance.success,
         )
@@ -134,11 +145,11 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
         own_error = np.hypot(*(est[valid, :2] - result.trace[valid, :2]).T)
         out.append(
             TrialRecord(
-                row=item["row"],
-                policy=item["policy"],
-                index=item["index"],
-                start=tuple(item["start"]),
-                wall=item["wall"],
+                row=item.row,
+                policy=item.policy,
+                index=item.index,
+                start=item.start,
+                wall=item.wall,
                 success=bool(result.success),
                 seconds=result.seconds,
                 touched=bool(result.touched),

@@ -23,7 +23,7 @@ from imitation import performance, reproduce, trials
 from imitation.cli import main
 from imitation.config import RunConfig
 from imitation.reproduce import STAGES
-from imitation.results import SCHEMA_VERSION
+from imitation.results import SCHEMA_VERSION, TrialRecord
 from imitation.runstate import RunState
 from imitation.streams import TeacherStream
 
@@ -169,17 +169,21 @@ def test_performance_trials_follow_the_plan(run_folder):
     """One record per planned trial (paired starts; no teacher row for other walls), each lasting
     at most the trial length, ending where the record says."""
     folder, _ = run_folder
-    records = json.loads((folder / "performance_trials.json").read_text())
+    records = [
+        TrialRecord.from_json(r)
+        for r in json.loads((folder / "performance_trials.json").read_text())
+    ]
     plan = trials.trial_plan(tiny_config())
-    key = lambda t: (t["row"], t["policy"], t["index"])  # noqa: E731
+    key = lambda t: (t.row, t.policy, t.index)  # noqa: E731
     assert sorted(map(key, records)) == sorted(map(key, plan))
     # student, hierarchical student and teacher per row; no teacher row for other walls.
     assert len(plan) == len(performance.ROWS) * 3 - 1
     planned = {key(p): p for p in plan}
     for r in records:
-        assert r["start"] == planned[key(r)]["start"]
-        assert 0 < r["seconds"] <= TINY["performance.trial_seconds"] + 1e-9
-        assert len(r["end_pose"]) == 3 and np.all(np.isfinite(r["end_pose"]))
+        assert r.start == planned[key(r)].start
+        assert r.wall == planned[key(r)].wall
+        assert 0 < r.seconds <= TINY["performance.trial_seconds"] + 1e-9
+        assert len(r.end_pose) == 3 and np.all(np.isfinite(r.end_pose))
 
 
 def test_results_md_has_the_tables(run_folder):
@@ -333,8 +337,8 @@ def test_trial_plan_is_seeded_and_paired():
     assert a == b
     assert trials.trial_plan(config.replace({"seed": 5})) != a
     for row in performance.ROWS:
-        student = [p["start"] for p in a if p["row"] == row and p["policy"] == "student"]
-        teacher = [p["start"] for p in a if p["row"] == row and p["policy"] == "teacher"]
+        student = [p.start for p in a if p.row == row and p.policy == "student"]
+        teacher = [p.start for p in a if p.row == row and p.policy == "teacher"]
         assert len(student) == 3
         assert teacher == ([] if row == "pick_other_wall" else student)
 
