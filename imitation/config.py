@@ -19,6 +19,7 @@ import tomli_w
 
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
+from imitation import storage
 from imitation.learning import MOTOR_SOURCES
 from imitation.observers import VISION_MODES
 from imitation.performance import DRIVE_MODES, SuccessConfig
@@ -307,7 +308,7 @@ def dump(config: RunConfig, path) -> None:
         text = f"{_TOML_HEADER}\n{tomli_w.dumps(data)}"
     else:
         text = json.dumps(data, indent=2)
-    path.write_text(text)
+    storage.write_text(path, text)
 
 
 _TOML_HEADER = (

@@ -8,7 +8,7 @@ interrupted run resumes where it stopped and ends bit-identical to an uninterrup
 
 from __future__ import annotations
 
-import os
+import json
 import pathlib
 
 import numpy as np
@@ -17,6 +17,7 @@ from tqdm import tqdm
 from associator import encoding, persistence
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
+from imitation import storage
 from imitation.streams import TeacherStream
 from peoplebot_sim import directives
 from perception.motion import DirectiveConfig, infer_directives_batch
@@ -105,22 +106,40 @@ def train(
     chunk: int = 50_000,
     progress: bool = True,
     desc: str = "learning by watching",
+    provenance: dict | None = None,
 ):
     """Trains ``model`` (an ``Associator`` or a ``HierarchicalAssociator``) on ``stream``, resuming
     from ``checkpoint_path`` if it holds a partly trained network; saves the network there after
-    every chunk (atomically) and returns it. A ``HierarchicalAssociator`` then counts its word
+    every chunk (crash-safe) and returns it. A ``HierarchicalAssociator`` then counts its word
     statistics on the same stream (``count_word_statistics``; with ``motor_source='vision'`` the
     directives counted are those of the motion out of each pose, ``following_directives``) and is
-    saved again."""
+    saved again.
+
+    ``provenance`` (JSON values: what the network is trained from, e.g. the stream's digest, the
+    seed and the motor source) is stored in the checkpoint's metadata; a checkpoint made with other
+    hyper-parameters or another provenance is refused (ValueError), an unreadable one is discarded.
+    """
     checkpoint_path = pathlib.Path(checkpoint_path)
+    provenance = json.loads(json.dumps(provenance or {}))
     if checkpoint_path.exists():
-        saved = persistence.load(checkpoint_path)
-        if saved.get_params() != model.get_params():
-            raise ValueError(
-                f"checkpoint {checkpoint_path} was made with other hyper-parameters; delete it or "
-                "use the same settings"
-            )
-        model = saved
+        try:
+            saved = persistence.load(checkpoint_path)
+            saved_provenance = persistence.load_metadata(checkpoint_path).get("provenance", {})
+        except ValueError as error:
+            print(f"checkpoint {checkpoint_path} is unreadable ({error}); training starts over")
+            saved = None
+        if saved is not None:
+            if saved.get_params() != model.get_params():
+                raise ValueError(
+                    f"checkpoint {checkpoint_path} was made with other hyper-parameters; delete "
+                    "it or use the same settings"
+                )
+            if saved_provenance != provenance:
+                raise ValueError(
+                    f"checkpoint {checkpoint_path} was trained from other data or settings "
+                    f"({saved_provenance} vs {provenance}); delete it or use the same settings"
+                )
+            model = saved
     done = int(getattr(model, "n_steps_", 0))
     total = len(stream)
     if done > total:
@@ -130,7 +149,7 @@ def train(
         stop = min(done + chunk, total)
         model.partial_fit(*encode_stream(stream, encoder, motor_source, dt, done, stop))
         done = stop
-        save_atomically(model, checkpoint_path)
+        save_atomically(model, checkpoint_path, {"provenance": provenance})
         bar.update(stop - bar.n)
     bar.close()
     if isinstance(model, HierarchicalAssociator) and not model.has_word_statistics_:
@@ -150,14 +169,13 @@ def train(
             model.count_word_statistics(vision, language, motor, performed)
             bar.update(stop - start)
         bar.close()
-        save_atomically(model, checkpoint_path)
+        save_atomically(model, checkpoint_path, {"provenance": provenance})
     return model
 
 
-def save_atomically(model: Associator, path) -> None:
-    """Saves the network to ``path`` via a temporary file, so an interruption never leaves a
-    half-written checkpoint."""
-    path = pathlib.Path(path)
-    tmp = path.with_name(path.stem + ".partial.npz")
-    persistence.save(model, tmp)
-    os.replace(tmp, path)
+def save_atomically(model: Associator, path, metadata: dict | None = None) -> None:
+    """Saves the network (with ``metadata``) to ``path`` via a temporary file, flushed to disk, so an
+    interruption never leaves a half-written checkpoint."""
+    tmp = storage.temporary_name(path)
+    persistence.save(model, tmp, metadata)
+    storage.commit(tmp, path)

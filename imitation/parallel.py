@@ -1,10 +1,19 @@
-"""Parallel stages: work split over spawned processes, with one progress bar fed by files."""
+"""Parallel stages: work split over spawned processes, with one progress bar fed by files.
+
+Workers die with their parent: a killed run leaves no worker writing into its folder.
+"""
 
 from __future__ import annotations
 
 import concurrent.futures
+import ctypes
+import ctypes.util
 import multiprocessing
+import os
 import pathlib
+import signal
+import sys
+import threading
 import time
 
 from tqdm import tqdm
@@ -36,7 +45,12 @@ def run_parallel(fn, jobs: list, args: tuple, workers: int, folder, desc: str, t
     folder = pathlib.Path(folder)
     progress = [folder / f".{desc.replace(' ', '_')}.{i}.progress" for i in range(len(jobs))]
     context = multiprocessing.get_context("spawn")
-    with concurrent.futures.ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    with concurrent.futures.ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=context,
+        initializer=die_with_parent,
+        initargs=(os.getpid(),),
+    ) as pool:
         futures = [
             pool.submit(fn, job, *args, str(p)) for job, p in zip(jobs, progress, strict=True)
         ]
@@ -44,3 +58,24 @@ def run_parallel(fn, jobs: list, args: tuple, workers: int, folder, desc: str, t
     for p in progress:
         p.unlink(missing_ok=True)
     return results
+
+
+#: Linux's prctl option that sends a signal to a process when its parent dies.
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Makes this (worker) process end when ``parent_pid`` does: the kernel's parent-death signal
+    where there is one (Linux), and a watcher thread everywhere (within 0.2 s)."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent_pid:  # the parent died before the signal was armed
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(0.2)
+        os._exit(1)
+
+    threading.Thread(target=watch, daemon=True, name="die-with-parent").start()

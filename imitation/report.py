@@ -11,7 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from associator import figures as network_figures  # noqa: E402
-from imitation import learning  # noqa: E402
+from imitation import learning, storage  # noqa: E402
 from imitation.performance import FIG4_START  # noqa: E402
 from imitation.results import PAPER_TABLE_I, Results  # noqa: E402
 from imitation.streams import TeacherStream  # noqa: E402
@@ -60,13 +60,25 @@ def figures(config, folder: pathlib.Path, model, encoder) -> dict:
     """Writes Figs. 3-7 into ``folder/figures``; returns their paths (relative to the folder)."""
     out_dir = folder / "figures"
     out_dir.mkdir(exist_ok=True)
+
+    def saved(name: str, draw) -> pathlib.Path:
+        """Draws a figure into a temporary file (``draw(path)``), then commits it as ``name``."""
+        path = out_dir / name
+        tmp = storage.temporary_name(path)
+        draw(tmp)
+        return storage.commit(tmp, path)
+
     paths = {
-        "fig3": network_figures.fig3_word_codes(out_dir / "fig3_word_codes.png"),
-        "fig5": network_figures.fig5_language_weights(model, out_dir / "fig5_language_weights.png"),
-        "fig6": network_figures.fig6_motor_weights(model, out_dir / "fig6_motor_weights.png"),
+        "fig3": saved("fig3_word_codes.png", network_figures.fig3_word_codes),
+        "fig5": saved(
+            "fig5_language_weights.png", lambda p: network_figures.fig5_language_weights(model, p)
+        ),
+        "fig6": saved(
+            "fig6_motor_weights.png", lambda p: network_figures.fig6_motor_weights(model, p)
+        ),
     }
     traces = dict(np.load(folder / "fig4_traces.npz", allow_pickle=False))
-    paths["fig4"] = fig4_traces(traces, out_dir / "fig4_traces.png", FIG4_START)
+    paths["fig4"] = saved("fig4_traces.png", lambda p: fig4_traces(traces, p, FIG4_START))
     stream = TeacherStream.load(folder / "streams" / "test.npz")
     recognition_inputs, performance_inputs = {}, {}
     for i, word in enumerate(directives.WORDS):
@@ -78,8 +90,11 @@ def figures(config, folder: pathlib.Path, model, encoder) -> dict:
         trace = traces[word]
         x, y, phi, _ = world_to_wall_batch(trace[:, 0], trace[:, 1], trace[:, 2])
         performance_inputs[word] = encoder.encode_batch(x, y, phi, clip=True)
-    paths["fig7"] = network_figures.fig7_hidden_activations(
-        model, out_dir / "fig7_hidden_activations.png", recognition_inputs, performance_inputs
+    paths["fig7"] = saved(
+        "fig7_hidden_activations.png",
+        lambda p: network_figures.fig7_hidden_activations(
+            model, p, recognition_inputs, performance_inputs
+        ),
     )
     return {k: str(pathlib.Path(v).relative_to(folder)) for k, v in paths.items()}
 

@@ -29,7 +29,7 @@ from associator import encoding, persistence
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from imitation import config as run_config
-from imitation import learning, recognition, report, trials
+from imitation import learning, recognition, report, storage, trials
 from imitation.config import RunConfig
 from imitation.parallel import run_parallel
 from imitation.results import (
@@ -43,7 +43,7 @@ from imitation.results import (
     package_versions,
 )
 from imitation.runstate import RunState
-from imitation.streams import TeacherStream, generate_resumable
+from imitation.streams import TeacherStream, generate_resumable, stream_provenance
 from peoplebot_sim import directives
 from perception.wallframe import ArenaGeometry
 
@@ -97,9 +97,16 @@ def _encoder() -> encoding.VisionEncoder:
 
 def stage_learning(config: RunConfig, folder: pathlib.Path, encoder) -> LearningResult:
     """Trains the paper's network and, if enabled, the hierarchical associator (checkpointed)."""
-    stream = TeacherStream.load(folder / "streams" / "train.npz")
+    stream_path = folder / "streams" / "train.npz"
+    stream = TeacherStream.load(stream_path)
     dt = config.task.control_timestep
     motor_source = config.learning.motor_source
+    # What the networks learn from: checkpoints made from anything else are never resumed.
+    provenance = {
+        "stream": stream_provenance(stream_path),
+        "motor_source": motor_source,
+        "seed": config.seed,
+    }
     model = learning.train(
         Associator(**config.network_params()),
         stream,
@@ -107,6 +114,7 @@ def stage_learning(config: RunConfig, folder: pathlib.Path, encoder) -> Learning
         encoder=encoder,
         motor_source=motor_source,
         dt=dt,
+        provenance=provenance,
     )
     paper = NetworkSummary("network.npz", int(model.n_steps_), _listed(model.get_params()))
     hierarchical = None
@@ -122,6 +130,7 @@ def stage_learning(config: RunConfig, folder: pathlib.Path, encoder) -> Learning
             motor_source=motor_source,
             dt=dt,
             desc="learning by watching (hierarchical)",
+            provenance=provenance,
         )
         hierarchical = NetworkSummary(
             "hierarchical.npz", int(upper.n_steps_), _listed(upper.get_params())
@@ -146,7 +155,7 @@ def stage_recognition(config: RunConfig, folder: pathlib.Path, model, encoder) -
         return recognised, recognition.table(stream.word, recognised)
 
     recognised, truth = on_stream(model, motor_weight=READOUTS["paper"])
-    np.save(folder / "recognised_test.npy", recognised)
+    storage.save_npy(folder / "recognised_test.npy", recognised)
     values = {
         "truth": truth,
         "truth_motor_weighted": on_stream(model, motor_weight=READOUTS["motor_weighted"])[1],
@@ -222,51 +231,85 @@ def reuse_learning(state: RunState, source) -> None:
     shutil.copyfile(source / "network.npz", state.folder / "network.npz")
     if mine["hierarchical"]["enabled"]:
         shutil.copyfile(source / "hierarchical.npz", state.folder / "hierarchical.npz")
+    copied = {
+        "streams": [state.folder / "streams" / f"{name}.npz" for name in ("train", "test")],
+        "learning": [state.folder / "network.npz"]
+        + ([state.folder / "hierarchical.npz"] if mine["hierarchical"]["enabled"] else []),
+    }
     for stage in ("streams", "learning"):
-        state.finish(stage, {**other["stages"][stage], "reused_from": str(source)})
-        state.data.setdefault("seconds", {})[stage] = 0.0
+        state.finish(stage, {**other["stages"][stage], "reused_from": str(source)}, copied[stage])
 
 
 def run(config: RunConfig, out_dir, fresh: bool = False, reuse_from=None) -> Results:
     """Runs (or resumes) the whole experiment in ``out_dir``; returns the results.
 
+    A finished stage is kept only while every file it wrote is unchanged; otherwise it and the
+    stages after it run again. ``fresh`` removes everything an earlier run wrote first.
     ``reuse_from``: a finished run folder whose streams and network to take (see
     ``reuse_learning``).
     """
     folder = pathlib.Path(out_dir)
     state = RunState(folder, config.to_dict(), fresh=fresh)
-    run_config.dump(config, folder / "config.toml")
-    if reuse_from is not None:
-        reuse_learning(state, reuse_from)
-    encoder = _encoder()
-    timings = state.data.setdefault("seconds", {})
-    for stage in STAGES:
-        if state.done(stage):
-            print(f"[{stage}] done earlier, kept")
-            continue
-        if stage == "videos" and not config.videos.enabled:
-            continue
-        start = time.perf_counter()
-        if stage == "streams":
-            result = {k: v.to_json() for k, v in stage_streams(config, folder).items()}
-        elif stage == "learning":
-            result = stage_learning(config, folder, encoder).to_json()
-        else:
-            model = persistence.load(folder / "network.npz")
-            if stage == "recognition":
-                result = stage_recognition(config, folder, model, encoder).to_json()
-            elif stage == "performance":
-                result = trials.stage_performance(config, folder).to_json()
-            elif stage == "figures":
-                result = report.figures(config, folder, model, encoder)
-            else:
-                result = trials.stage_videos(config, folder)
-        timings[stage] = time.perf_counter() - start
-        state.finish(stage, result)
-    results = collect(config, state)
-    (folder / "results.json").write_text(json.dumps(results.to_json(), indent=2))
-    (folder / "results.md").write_text(report.markdown(results))
-    return results
+    try:
+        run_config.dump(config, folder / "config.toml")
+        _drop_changed_stages(state)
+        if reuse_from is not None:
+            reuse_learning(state, reuse_from)
+        encoder = _encoder()
+        for stage in STAGES:
+            if state.done(stage):
+                print(f"[{stage}] done earlier, kept")
+                continue
+            if stage == "videos" and not config.videos.enabled:
+                continue
+            start = time.perf_counter()
+            result, files = _run_stage(stage, config, folder, encoder)
+            state.finish(stage, result, files, time.perf_counter() - start)
+        results = collect(config, state)
+        storage.write_json(folder / "results.json", results.to_json())
+        storage.write_text(folder / "results.md", report.markdown(results))
+        return results
+    finally:
+        state.close()
+
+
+def _run_stage(stage: str, config: RunConfig, folder: pathlib.Path, encoder) -> tuple:
+    """Runs one stage; returns its result (JSON values) and the files it wrote."""
+    if stage == "streams":
+        summaries = stage_streams(config, folder)
+        return (
+            {k: v.to_json() for k, v in summaries.items()},
+            [folder / v.path for v in summaries.values()],
+        )
+    if stage == "learning":
+        learned = stage_learning(config, folder, encoder)
+        networks = [learned.paper] + ([learned.hierarchical] if learned.hierarchical else [])
+        return learned.to_json(), [folder / n.network for n in networks]
+    model = persistence.load(folder / "network.npz")
+    if stage == "recognition":
+        return stage_recognition(config, folder, model, encoder).to_json(), [
+            folder / "recognised_test.npy"
+        ]
+    if stage == "performance":
+        result = trials.stage_performance(config, folder).to_json()
+        return result, [folder / "performance_trials.json", folder / "fig4_traces.npz"]
+    if stage == "figures":
+        paths = report.figures(config, folder, model, encoder)
+        return paths, [folder / p for p in paths.values()]
+    videos = trials.stage_videos(config, folder)
+    return videos, [folder / name for name in videos["videos"]]
+
+
+def _drop_changed_stages(state: RunState) -> None:
+    """Forgets the first finished stage whose files are missing or changed, and every stage after
+    it (they run again)."""
+    for i, stage in enumerate(STAGES):
+        if state.done(stage) and not state.intact(stage):
+            print(
+                f"[{stage}] its files are missing or changed: it runs again, with the stages after it"
+            )
+            state.forget(STAGES[i:])
+            return
 
 
 def collect(config: RunConfig, state: RunState) -> Results:
@@ -293,7 +336,7 @@ def collect(config: RunConfig, state: RunState) -> Results:
         learning=record("learning", LearningResult),
         figures=stages.get("figures"),
         videos=stages.get("videos", {}).get("videos"),
-        seconds_per_stage=state.data.get("seconds", {}),
+        seconds_per_stage=dict(state.data["seconds"]),
         config=config.to_dict(),
         versions=package_versions(),
     )

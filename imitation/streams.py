@@ -14,13 +14,15 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import pathlib
+import zipfile
 
 import mujoco
 import numpy as np
 from dm_control import mjcf
 
+from imitation import storage
+from imitation.results import package_versions
 from peoplebot_sim import directives
 from peoplebot_sim.task import ImitationTask, TaskConfig
 from perception.wallframe import world_to_wall
@@ -61,15 +63,42 @@ class TeacherStream:
             *(np.concatenate([getattr(p, f.name) for p in parts]) for f in dataclasses.fields(cls))
         )
 
-    def save(self, path) -> None:
-        np.savez_compressed(
-            path, **{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
-        )
+    def save(self, path, provenance: dict | None = None) -> None:
+        """Writes the stream to ``path`` (``.npz``, crash-safe) with what made it
+        (``provenance``, JSON values)."""
+        arrays = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        arrays["provenance"] = np.array(json.dumps(provenance or {}, sort_keys=True))
+        storage.save_npz(path, compressed=True, **arrays)
 
     @classmethod
     def load(cls, path) -> TeacherStream:
+        """Reads a stream; ValueError naming the file if it is missing, corrupt or inconsistent."""
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                stream = cls(*(data[f.name] for f in dataclasses.fields(cls)))
+        except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as error:
+            raise ValueError(f"stream file {path} is unreadable ({error})") from None
+        n = len(stream.word)
+        shapes = {
+            "pose_world": (n, 3),
+            "pose_wall": (n, 3),
+            "directive": (n,),
+            "motor_changed": (n,),
+        }
+        for name, shape in shapes.items():
+            if getattr(stream, name).shape != shape:
+                raise ValueError(f"stream file {path} is inconsistent: {name} is not {shape}")
+        return stream
+
+
+def stream_provenance(path) -> dict | None:
+    """Returns what made a stream file (``TeacherStream.save``'s ``provenance``), or None if the
+    file is unreadable or has none."""
+    try:
         with np.load(path, allow_pickle=False) as data:
-            return cls(*(data[f.name] for f in dataclasses.fields(cls)))
+            return json.loads(str(data["provenance"]))
+    except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile):
+        return None
 
 
 class StreamGenerator:
@@ -218,24 +247,36 @@ def generate_resumable(
     progress_file=None,
 ) -> pathlib.Path:
     """Generates a stream of ``n_steps`` into ``folder/name.npz`` in chunks, checkpointing after each
-    one (its rows and the generator's state), so an interrupted call resumes where it stopped and
-    gives the same stream. Returns the stream's path.
+    one (its rows, then the generator's state naming the parts it has committed), so an interrupted
+    call resumes where it stopped and gives the same stream. A stream or checkpoint made with other
+    settings (seed, steps, world, package version) is never reused. Returns the stream's path.
 
     ``progress_file``, if given, receives the number of steps done after every chunk (for a parent
     process showing progress).
     """
+    config = config or TaskConfig()
     folder = pathlib.Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
+    provenance = {
+        "kind": "teacher_stream",
+        "seed": int(seed),
+        "steps": int(n_steps),
+        "world": _world_settings(config),
+        "version": package_versions()["peoplebot-imitation"],
+    }
     final = folder / f"{name}.npz"
-    if final.exists():
+    if final.exists() and stream_provenance(final) == provenance:
         return final
     state_path = folder / f"{name}.state.json"
     generator = StreamGenerator(seed, config)
-    parts = sorted(folder.glob(f"{name}.part*.npz"))
-    if state_path.exists():
-        state = json.loads(state_path.read_text())
-        generator.set_state(state)
-        parts = parts[: state["parts"]]
+    parts: list[pathlib.Path] = []
+    state = _read_checkpoint(state_path, provenance)
+    if state is not None:
+        try:
+            generator.set_state(state["generator"])
+            parts = [folder / part for part in state["parts"]]
+        except (ValueError, KeyError, TypeError):  # an unusable checkpoint: start over
+            generator = StreamGenerator(seed, config)
     done = generator.steps_done
 
     counter = {"done": done}
@@ -250,18 +291,50 @@ def generate_resumable(
         part = folder / f"{name}.part{len(parts):04d}.npz"
         stream.save(part)
         parts.append(part)
-        state = generator.get_state()
-        state["parts"] = len(parts)
-        tmp = state_path.with_suffix(".partial")
-        tmp.write_text(json.dumps(state))
-        os.replace(tmp, state_path)
+        storage.write_json(
+            state_path,
+            {
+                "provenance": provenance,
+                "generator": generator.get_state(),
+                "parts": [p.name for p in parts],
+                "digests": [storage.file_digest(p) for p in parts],
+            },
+        )
         done = generator.steps_done
         if progress_file is not None:
             pathlib.Path(progress_file).write_text(str(done))
     whole = TeacherStream.concatenate(TeacherStream.load(p) for p in parts)
-    whole.save(folder / f"{name}.partial.npz")
-    os.replace(folder / f"{name}.partial.npz", final)
+    whole.save(final, provenance)
     for p in parts:
         p.unlink()
     state_path.unlink(missing_ok=True)
     return final
+
+
+def _world_settings(config: TaskConfig) -> dict:
+    """Returns the settings of the world that decide a stream (clocks, drive, teacher)."""
+    return json.loads(
+        json.dumps(
+            {
+                "control_timestep": config.control_timestep,
+                "physics_timestep": config.physics_timestep,
+                "drive": dataclasses.asdict(config.drive),
+                "teacher": dataclasses.asdict(config.teacher),
+            }
+        )
+    )
+
+
+def _read_checkpoint(path: pathlib.Path, provenance: dict) -> dict | None:
+    """Returns a stream checkpoint if it was made with ``provenance`` and every part it names is
+    intact; None otherwise (the stream then starts over)."""
+    try:
+        state = json.loads(path.read_text())
+        if state["provenance"] != provenance:
+            return None
+        for part, digest in zip(state["parts"], state["digests"], strict=True):
+            if storage.file_digest(path.parent / part) != digest:
+                return None
+        return state
+    except (OSError, ValueError, KeyError, TypeError):
+        return None

@@ -10,7 +10,7 @@ import imageio.v2 as imageio
 import numpy as np
 
 from associator import encoding, persistence
-from imitation import performance
+from imitation import performance, storage
 from imitation.config import RunConfig
 from imitation.observers import Calibration, StudentVision
 from imitation.overlay import annotate
@@ -175,8 +175,8 @@ def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceRes
         _trials_worker, chunks, (config, networks), workers, folder, "performance trials", len(plan)
     )
     trials = [t for chunk in results for t in chunk]
-    (folder / "performance_trials.json").write_text(
-        json.dumps([t.to_json() for t in trials], indent=1)
+    storage.write_text(
+        folder / "performance_trials.json", json.dumps([t.to_json() for t in trials], indent=1)
     )
     rates = {}
     for row in performance.ROWS:
@@ -214,7 +214,7 @@ def fig4_traces(config: RunConfig, folder: pathlib.Path) -> dict:
             tuple(float(v) for v in result.trace[-1]), result.touched, result.seconds
         )
     env.close()
-    np.savez(folder / "fig4_traces.npz", **traces)
+    storage.save_npz(folder / "fig4_traces.npz", **traces)
     return out
 
 
@@ -224,11 +224,12 @@ class _VideoWriter:
     def __init__(
         self, env, path, word: str, width: int, height: int, progress_file: str, frames_before: int
     ):
+        self.path, self.tmp = pathlib.Path(path), storage.temporary_name(path)
         self.word, self.progress_file, self.frames = word, progress_file, frames_before
         self.steps = 0
         self.renderer = FrameRenderer(env.physics, width, height, antialias=True)
         self.writer = imageio.get_writer(
-            str(path),
+            str(self.tmp),
             fps=20,
             codec="libx264",
             quality=7,
@@ -246,9 +247,14 @@ class _VideoWriter:
         if self.frames % 20 == 0:
             pathlib.Path(self.progress_file).write_text(str(self.frames))
 
-    def close(self) -> None:
+    def close(self, keep: bool = True) -> None:
+        """Finishes the video; ``keep``: move it to its name (False: a failed trial's is dropped)."""
         self.writer.close()
         self.renderer.close()
+        if keep:
+            storage.commit(self.tmp, self.path)
+        else:
+            self.tmp.unlink(missing_ok=True)
 
 
 def _video_worker(
@@ -262,6 +268,7 @@ def _video_worker(
         agent = make_agent(config, "student", word, env, model, calibration)
         path = pathlib.Path(folder) / f"student_{word}.mp4"
         video = _VideoWriter(env, path, word, width, height, progress_file, frames)
+        finished = False
         try:
             performance.run_trial(
                 env,
@@ -274,8 +281,9 @@ def _video_worker(
                 stop_on_success=False,
                 frame_callback=video,
             )
+            finished = True
         finally:
-            video.close()
+            video.close(keep=finished)
         frames = video.frames
         paths.append(path.name)
     env.close()

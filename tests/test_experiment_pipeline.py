@@ -10,7 +10,9 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
 # isort: split
 import copy
+import hashlib
 import json
+import os
 import shutil
 
 import imageio.v2 as imageio
@@ -344,32 +346,66 @@ def test_trial_plan_is_seeded_and_paired():
 
 
 # ------------------------------------------------------------------------------ run folder state
+def opened(folder, config: dict, fresh: bool = False) -> RunState:
+    """Returns a run state read (or made) and closed again, or raises what opening it raised."""
+    state = RunState(folder, config, fresh=fresh)
+    state.close()
+    return state
+
+
 def test_run_state_refuses_other_settings_and_accepts_fresh(tmp_path):
     base = tiny_config().to_dict()
     state = RunState(tmp_path, base)
     state.finish("streams", {"steps": 1})
+    state.close()
     other = tiny_config(**{"performance.trials": 2, "seed": 7}).to_dict()
     with pytest.raises(ValueError, match=r"other settings \(performance\.trials, seed\)"):
-        RunState(tmp_path, other)
+        opened(tmp_path, other)
     # Refusing leaves the folder's state alone.
-    assert RunState(tmp_path, base).done("streams")
-    fresh = RunState(tmp_path, other, fresh=True)
-    assert not fresh.done("streams")
-    assert RunState(tmp_path, other).data["config"] == other
+    assert opened(tmp_path, base).done("streams")
+    assert not opened(tmp_path, other, fresh=True).done("streams")
+    assert opened(tmp_path, other).data["config"] == other
 
 
 def test_run_state_refuses_a_corrupt_file(tmp_path):
-    (tmp_path / "state.json").write_text("{not json")
-    with pytest.raises(ValueError, match="corrupt"):
+    opened(tmp_path, {"seed": 0})
+    path = tmp_path / "state.json"
+    for text in ("{not json", "[]", path.read_text().replace('"seed": 0', '"seed": 1')):
+        path.write_text(text)
+        with pytest.raises(ValueError, match="state.json is (corrupt|not a run state)"):
+            opened(tmp_path, {"seed": 0})
+    assert opened(tmp_path, {"seed": 0}, fresh=True).data["stages"] == {}
+
+
+def test_run_state_refuses_another_version(tmp_path):
+    opened(tmp_path, {"seed": 0})
+    path = tmp_path / "state.json"
+    data = json.loads(path.read_text())
+    data.pop("checksum")
+    data["version"] = "0.0.1"
+    data["checksum"] = hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="made by peoplebot-imitation 0.0.1"):
+        opened(tmp_path, {"seed": 0})
+
+
+def test_run_folder_is_used_by_one_process_at_a_time(tmp_path):
+    first = RunState(tmp_path, {"seed": 0})
+    with pytest.raises(
+        ValueError, match=rf"in use by a running peoplebot process \(pid {os.getpid()}\)"
+    ):
         RunState(tmp_path, {"seed": 0})
-    assert RunState(tmp_path, {"seed": 0}, fresh=True).data["stages"] == {}
+    first.close()
+    opened(tmp_path, {"seed": 0})
 
 
 def test_run_state_resumes_with_network_settings(tmp_path):
     """A run with associator settings (a tuple among them) resumes in its own folder."""
     changes = {"network.hidden_shape": (8, 24), "network.eta": 0.002}
-    RunState(tmp_path, tiny_config(**changes).to_dict()).finish("streams", {})
-    assert RunState(tmp_path, tiny_config(**changes).to_dict()).done("streams")
+    state = RunState(tmp_path, tiny_config(**changes).to_dict())
+    state.finish("streams", {})
+    state.close()
+    assert opened(tmp_path, tiny_config(**changes).to_dict()).done("streams")
 
 
 # ------------------------------------------------------------------------------ command line

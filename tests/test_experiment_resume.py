@@ -201,7 +201,7 @@ def test_interrupted_stream_resumes_identical(tmp_path, monkeypatch):
         with pytest.raises(Interrupt):
             generate_resumable(seed, n, folder, "s", chunk=200)
     state = json.loads((folder / "s.state.json").read_text())
-    assert state["steps_done"] == 400 and state["parts"] == 2
+    assert state["generator"]["steps_done"] == 400 and len(state["parts"]) == 2
     assert len(sorted(folder.glob("s.part*.npz"))) == 2
     assert not (folder / "s.npz").exists()
 
@@ -219,6 +219,57 @@ def test_interrupted_stream_resumes_identical(tmp_path, monkeypatch):
     assert progress.read_text() == str(n)
     # Only the finished stream is left behind.
     assert sorted(p.name for p in folder.iterdir()) == ["s.npz"]
+
+
+def test_parts_without_a_committed_checkpoint_are_discarded(tmp_path, monkeypatch):
+    """A crash can leave a part its checkpoint does not name (written, then killed before the
+    checkpoint), a 0-byte part, or parts with no checkpoint at all: none is trusted, and the
+    resumed stream equals the one generated in one go (no duplicated or missing rows)."""
+    n, seed = 500, 4
+    reference = TeacherStream.load(generate_resumable(seed, n, tmp_path / "whole", "s", chunk=n))
+
+    def interrupted(folder):
+        with monkeypatch.context() as patch:
+            interrupt_on_call(patch, streams.StreamGenerator, "generate", call=2)
+            with pytest.raises(Interrupt):
+                generate_resumable(seed, n, folder, "s", chunk=200)
+
+    cases = {
+        "uncommitted part": lambda f: (f / "s.part0001.npz").write_bytes(
+            (f / "s.part0000.npz").read_bytes()
+        ),
+        "0-byte part": lambda f: (f / "s.part0001.npz").write_bytes(b""),
+        "no checkpoint": lambda f: (f / "s.state.json").unlink(),
+        "0-byte part, no checkpoint": lambda f: (
+            (f / "s.state.json").unlink(),
+            (f / "s.part0000.npz").write_bytes(b""),
+        ),
+        "corrupt checkpoint": lambda f: (f / "s.state.json").write_text("{"),
+        "changed part": lambda f: (f / "s.part0000.npz").write_bytes(
+            (f / "s.part0000.npz").read_bytes()[:-7]
+        ),
+    }
+    for name, damage in cases.items():
+        folder = tmp_path / name.replace(" ", "_").replace(",", "")
+        interrupted(folder)
+        damage(folder)
+        resumed = TeacherStream.load(generate_resumable(seed, n, folder, "s", chunk=200))
+        assert len(resumed) == n, name
+        for field in dataclasses.fields(TeacherStream):
+            np.testing.assert_array_equal(
+                getattr(resumed, field.name), getattr(reference, field.name), err_msg=name
+            )
+
+
+def test_a_stream_of_other_settings_is_never_reused(tmp_path):
+    """A finished stream file is reused only when it was made with the same seed, steps and
+    world: another seed in the same folder generates it again."""
+    first = TeacherStream.load(generate_resumable(2, 60, tmp_path, "t", chunk=60))
+    other = TeacherStream.load(generate_resumable(3, 60, tmp_path, "t", chunk=60))
+    assert not np.array_equal(first.pose_world, other.pose_world)
+    assert streams.stream_provenance(tmp_path / "t.npz")["seed"] == 3
+    longer = TeacherStream.load(generate_resumable(3, 80, tmp_path, "t", chunk=80))
+    assert len(longer) == 80
 
 
 def test_stream_generator_state_round_trip():
