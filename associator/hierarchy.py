@@ -67,6 +67,22 @@ def _pose_features(vision: np.ndarray) -> np.ndarray:
     return np.stack([centres[:, 0], centres[:, 1], np.cos(angle), np.sin(angle)], axis=1)
 
 
+def _word_list(words, vocabulary) -> list:
+    """Returns ``words`` (a sequence of names) as a list; ValueError for anything that is not a
+    sequence of strings (this network takes words, never language codes)."""
+    try:
+        names = list(words)
+    except TypeError:
+        names = [words]
+    others = [name for name in names if not isinstance(name, str)]
+    if others:
+        raise ValueError(
+            f"words must be one word or a sequence of words of the vocabulary {tuple(vocabulary)}, "
+            f"got {type(others[0]).__name__} {repr(others[0]):.60}"
+        )
+    return names
+
+
 class SequenceState(NamedTuple):
     """Where recognition over time stands after a sample, to continue with the next ones.
 
@@ -526,7 +542,7 @@ class HierarchicalAssociator:
         self._check_fitted()
         vision = encoding.check_codes(vision, N_VISION, "vision")
         n = vision.shape[0]
-        names = [words] * n if isinstance(words, str) else list(words)
+        names = [words] * n if isinstance(words, str) else _word_list(words, self.vocabulary)
         if len(names) != n:
             raise ValueError(
                 f"vision and words must have the same number of samples, got {n} and {len(names)}"

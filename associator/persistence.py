@@ -19,6 +19,14 @@ training sample, -1 before any), so that training resumes exactly; optionally th
 of ``count_word_statistics``: ``word_samples`` (n_words, n_hidden), ``word_pose_sums`` (n_words,
 n_hidden, 4), ``word_pose_squares`` (n_words, n_hidden, 2), ``word_motor_counts`` (n_words,
 n_hidden, 4).
+
+``load`` refuses, naming the entry, a file whose counts contradict each other, which no file that
+``save`` wrote does: counts that are not whole, word links that do not add up to ``n_steps``,
+transitions that do not match the links or each other, and word statistics with sums where there
+are no samples, a heading longer than its sample count, a negative variance, or directive counts
+that do not add up to the samples. The word links and the word statistics need not agree: the
+links count the wake winners while the lower level learned, the statistics the recognition winners
+of a frozen lower level, on whatever samples ``count_word_statistics`` was given.
 """
 
 from __future__ import annotations
@@ -125,7 +133,10 @@ def load(path):
 def _read(path):
     path = os.fspath(path)
     try:
-        with np.load(path, allow_pickle=False) as archive:
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):  # a .npy file holds one bare array
+            _fail(path, f"not an .npz archive (one {type(loaded).__name__})")
+        with loaded as archive:
             keys = _KEYS
             if "format" in archive.files and str(archive["format"]) == HIERARCHICAL_FORMAT:
                 keys = _KEYS + _HIERARCHY_KEYS
@@ -235,6 +246,7 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
             f"last_sample {last!r} must be [word, winner], both -1 or word < {n_words} and "
             f"winner < {n_hidden}",
         )
+    _counts_agree(path, lower, links, words, keys, counts, last)
     model.lower_ = lower
     model.word_links_ = np.array(links, dtype=float)
     model.word_transitions_ = np.array(words, dtype=float)
@@ -244,6 +256,51 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
     if _STATISTICS[0][0] in data:
         _word_statistics(path, model, data)
     return model
+
+
+def _whole(path, key: str, values: np.ndarray) -> None:
+    """Fails unless ``values`` are whole numbers: counts, each sample adding one."""
+    if np.any(values != np.round(values)):
+        _fail(path, f"{key} has non-whole counts (each sample adds one)")
+
+
+def _counts_agree(path, lower: Associator, links, words, keys, counts, last) -> None:
+    """Fails unless the word layer's counts are those of one training stream: each sample adds one
+    link (``n_steps`` in all), each sample after the first one transition, counted once in
+    ``word_transitions`` (from its previous word) and once in the lower-winner transitions (under
+    its word), and the last sample's link exists."""
+    if last.dtype.kind not in "iu":
+        _fail(path, f"last_sample must hold integers, got {last.dtype}")
+    for key, values in (
+        ("word_links", links),
+        ("word_transitions", words),
+        ("transition_counts", counts),
+    ):
+        _whole(path, key, values)
+    n_steps = lower.n_steps_
+    if links.sum() != n_steps:
+        _fail(path, f"word_links count {links.sum():g} samples, but n_steps is {n_steps}")
+    if (last[0] < 0) != (n_steps == 0):
+        _fail(path, f"last_sample {last.tolist()} does not fit n_steps {n_steps}")
+    if n_steps == 0:
+        return
+    if links[last[0], last[1]] < 1:
+        _fail(path, f"last_sample {last.tolist()} has no count in word_links")
+    n_words, n_hidden = words.shape[0], links.shape[1]
+    leaving = links.sum(axis=1) - (np.arange(n_words) == last[0])
+    if not np.array_equal(words.sum(axis=1), leaving):
+        _fail(
+            path,
+            f"word_transitions leave the words {words.sum(axis=1).tolist()} times, but word_links "
+            f"count {leaving.tolist()} samples followed by another",
+        )
+    under_word = np.bincount(keys // (n_hidden * n_hidden), weights=counts, minlength=n_words)
+    if not np.array_equal(under_word, words.sum(axis=0)):
+        _fail(
+            path,
+            f"transition_counts hold {under_word.tolist()} transitions per word, but "
+            f"word_transitions {words.sum(axis=0).tolist()}",
+        )
 
 
 def _word_statistics(path, model: HierarchicalAssociator, data) -> None:
@@ -263,7 +320,40 @@ def _word_statistics(path, model: HierarchicalAssociator, data) -> None:
             _fail(path, f"{key} has non-finite values")
         if key != "word_pose_sums" and np.any(values < 0):
             _fail(path, f"{key} has negative values")
-    if not np.array_equal(data["word_motor_counts"].sum(axis=2), data["word_samples"]):
-        _fail(path, "word_motor_counts do not add up to word_samples")
+    samples, sums, squares = data["word_samples"], data["word_pose_sums"], data["word_pose_squares"]
+    for key in ("word_samples", "word_motor_counts"):
+        _whole(path, key, data[key])
+
+    def cell(where: np.ndarray) -> str:
+        word, unit = np.argwhere(where)[0]
+        return f"(word {model.vocabulary[word]!r}, unit {unit})"
+
+    wrong = data["word_motor_counts"].sum(axis=2) != samples
+    if np.any(wrong):
+        _fail(path, f"word_motor_counts do not add up to word_samples at {cell(wrong)}")
+    empty = samples == 0
+    for key, values in (("word_pose_sums", sums), ("word_pose_squares", squares)):
+        wrong = empty & np.any(values != 0, axis=2)
+        if np.any(wrong):
+            _fail(path, f"{key} is not zero at {cell(wrong)}, where word_samples counts no sample")
+    # The heading's unit vectors add up to at most one per sample; the squares of the x and y bump
+    # centres to at least their sum squared over the samples (Cauchy-Schwarz). Both within
+    # rounding: a relative 1e-6, above a double's worst summation error (n x 1.1e-16) for up to
+    # a billion samples.
+    heading = np.hypot(sums[..., 2], sums[..., 3])
+    wrong = heading > samples * (1 + 1e-6)
+    if np.any(wrong):
+        _fail(
+            path,
+            f"word_pose_sums has a heading vector longer than its sample count at {cell(wrong)}",
+        )
+    safe = np.maximum(samples, 1.0)[..., None]
+    wrong = np.any(squares - sums[..., :2] ** 2 / safe < -1e-6 * squares - 1e-12, axis=2)
+    if np.any(wrong):
+        _fail(
+            path,
+            f"word_pose_squares is smaller than word_pose_sums squared over word_samples (a "
+            f"negative variance) at {cell(wrong)}",
+        )
     for key, attr in _STATISTICS:
         setattr(model, attr, np.array(data[key], dtype=float))

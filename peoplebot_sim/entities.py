@@ -3,6 +3,8 @@ and the object."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from dm_control import composer, mjcf
 from dm_control.composer.observation import observable
@@ -13,6 +15,13 @@ from perception.wallframe import ArenaGeometry
 
 #: How far the object stands behind the table's front edge, metres.
 OBJECT_SETBACK_M = 0.10
+
+#: Radius in metres of the disc, centred on the robot frame's origin, that holds the PeopleBot's base
+#: footprint: the half-diagonal of the 0.513 m x 0.425 m chassis (ARIA's ``RobotLength 513``,
+#: ``RobotWidth 425``; ``models/peoplebot/README.md``, ``chassis_collision`` in ``peoplebot.xml``).
+#: The wheels, casters, column and deck lie inside it; the gripper, which reaches 0.38 m ahead of
+#: the axle at its paddles, does not (a docked robot's gripper reaches towards the table).
+BASE_RADIUS_M = 0.5 * math.hypot(0.513, 0.425)
 
 
 def table_position(arena: ArenaGeometry) -> tuple[float, float, float]:

@@ -26,6 +26,65 @@ CAMERA_NAMES = ("overhead", "head")
 STUDENT_WATCH_POSE = (-1.45, -1.45, math.pi / 4)
 
 
+def start_pose(name: str, pose, arena: ArenaGeometry) -> tuple[float, float, float]:
+    """Returns a robot's start ``pose`` ``(x m, y m, yaw rad)`` as a tuple of floats; raises
+    ValueError naming ``name`` unless it is an array-like of three finite numbers that puts the
+    robot (the disc of ``entities.BASE_RADIUS_M`` around its centre) on the free floor of
+    ``arena``: inside the walls and clear of the table."""
+    try:
+        values = np.asarray(pose)
+    except (TypeError, ValueError):
+        values = np.empty(0)
+    if values.shape != (3,) or values.dtype.kind not in "iuf" or not np.all(np.isfinite(values)):
+        raise ValueError(
+            f"{name} must be None or three finite numbers (x m, y m, yaw rad), got {pose!r}"
+        )
+    pose = tuple(float(v) for v in values)
+    x, y, _ = pose
+    radius = entities.BASE_RADIUS_M
+    limit = arena.half_side_m - radius
+    if abs(x) > limit or abs(y) > limit:
+        raise ValueError(
+            f"{name} {pose} lies outside the arena: x and y must be within +-{limit:.3f} m for a "
+            f"robot of radius {radius:.3f} m"
+        )
+    gap = arena.table_gap_m(x, y)
+    if gap < radius:
+        x0, x1, y0, y1 = arena.table_box
+        raise ValueError(
+            f"{name} {pose} overlaps the table: a robot of radius {radius:.3f} m needs its centre "
+            f"at least {radius:.3f} m from the table's footprint (x {x0:g} to {x1:g} m, y {y0:g} "
+            f"to {y1:g} m), got {gap:.3f} m"
+        )
+    return pose
+
+
+def check_apart(student: tuple[str, tuple], teacher: tuple[str, tuple]) -> None:
+    """Raises ValueError unless the two robots' start poses, ``(what, pose)`` each, keep their
+    discs (``entities.BASE_RADIUS_M``) apart."""
+    (student_name, student_pose), (teacher_name, teacher_pose) = student, teacher
+    least = 2 * entities.BASE_RADIUS_M
+    distance = math.hypot(student_pose[0] - teacher_pose[0], student_pose[1] - teacher_pose[1])
+    if distance < least:
+        raise ValueError(
+            f"{teacher_name} {tuple(teacher_pose)} overlaps {student_name} {tuple(student_pose)}: "
+            f"the robots' centres must be at least {least:.3f} m apart (two robots of radius "
+            f"{entities.BASE_RADIUS_M:.3f} m), got {distance:.3f} m"
+        )
+
+
+def _student_start(
+    override, config: TaskConfig, configured: str = "TaskConfig.student_pose"
+) -> tuple[str, tuple]:
+    """Returns which student start applies, ``(what, pose)``: the override, the configured one
+    (called ``configured``) or the watching spot."""
+    if override is not None:
+        return "student_pose", override
+    if config.student_pose is not None:
+        return configured, config.student_pose
+    return "the student's watching spot", STUDENT_WATCH_POSE
+
+
 @dataclasses.dataclass(frozen=True)
 class TaskConfig:
     """How the imitation world is built.
@@ -40,6 +99,9 @@ class TaskConfig:
       teacher: the teacher's behaviour parameters.
       student_pose: the student's start ``(x, y, yaw)``; None draws nothing and uses the watching spot.
       teacher_pose: the teacher's start ``(x, y, yaw)``; None draws a random free pose each episode.
+        Each start is three finite numbers (any array-like, stored as a tuple of floats) that put
+        the robot on the free floor (``start_pose``), and the teacher's keeps clear of the
+        student's (``check_apart``).
       time_limit: episode length in seconds (``float('inf')`` for endless).
     """
 
@@ -81,12 +143,15 @@ class TaskConfig:
             )
         if not self.time_limit > 0:
             raise ValueError(f"time_limit must be positive seconds, got {self.time_limit!r}")
+        arena = ArenaGeometry()  # the task's (ImitationTask.geometry)
         for name in ("student_pose", "teacher_pose"):
             pose = getattr(self, name)
-            if pose is not None and (len(pose) != 3 or not np.all(np.isfinite(pose))):
-                raise ValueError(
-                    f"{name} must be None or three finite numbers (x m, y m, yaw rad), got {pose!r}"
-                )
+            if pose is not None:
+                object.__setattr__(self, name, start_pose(name, pose, arena))
+        if self.with_teacher and self.teacher_pose is not None:
+            check_apart(
+                _student_start(None, self, "student_pose"), ("teacher_pose", self.teacher_pose)
+            )
 
 
 class ImitationTask(composer.Task):
@@ -228,27 +293,31 @@ class ImitationTask(composer.Task):
     # ------------------------------------------------------------------ episode
     def set_start(self, student_pose=None, teacher_pose=None) -> None:
         """Overrides the configured start poses ``(x, y, yaw)`` for the next episodes (None: back to
-        the configuration's)."""
-        for name, pose in (("student_pose", student_pose), ("teacher_pose", teacher_pose)):
-            if pose is not None and (len(pose) != 3 or not np.all(np.isfinite(pose))):
-                raise ValueError(
-                    f"{name} must be None or three finite numbers (x m, y m, yaw rad), got {pose!r}"
-                )
+        the configuration's); ValueError for a pose off the free floor or robots that overlap (see
+        ``TaskConfig``)."""
+        if student_pose is not None:
+            student_pose = start_pose("student_pose", student_pose, self.geometry)
+        if teacher_pose is not None:
+            teacher_pose = start_pose("teacher_pose", teacher_pose, self.geometry)
+        if self._teacher is not None:
+            teacher = ("teacher_pose", teacher_pose)
+            if teacher_pose is None:
+                teacher = ("TaskConfig.teacher_pose", self.config.teacher_pose)
+            if teacher[1] is not None:  # a drawn teacher pose keeps clear of the student
+                check_apart(_student_start(student_pose, self.config), teacher)
         self._start_override = (student_pose, teacher_pose)
 
     def initialize_episode(self, physics, random_state):
         rng = np.random.default_rng(random_state.randint(2**31))
         student_override, teacher_override = getattr(self, "_start_override", (None, None))
-        student_pose = student_override or self.config.student_pose or STUDENT_WATCH_POSE
+        _, student_pose = _student_start(student_override, self.config)
         self._student.set_planar_pose(physics, *student_pose)
         physics.named.data.qpos["student/head_pan"] = 0.0
         physics.named.data.qpos["student/head_tilt"] = 0.0
         if self._teacher is not None:
-            pose = (
-                teacher_override
-                or self.config.teacher_pose
-                or self.random_free_pose(rng, avoid=student_pose)
-            )
+            pose = teacher_override if teacher_override is not None else self.config.teacher_pose
+            if pose is None:
+                pose = self.random_free_pose(rng, avoid=student_pose)
             self._teacher.set_planar_pose(physics, *pose)
         self._object.set_pose(
             physics,

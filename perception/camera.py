@@ -57,12 +57,21 @@ def look_at_rotation(position_world, target_world, up_world=(0.0, 0.0, 1.0)) -> 
     straight down, pass an ``up_world`` in the floor plane (e.g. world +y, so that north is at the
     image's top). Shapes (3,), metres, world frame.
     """
-    forward = np.asarray(target_world, dtype=float) - np.asarray(position_world, dtype=float)
+    points = {}
+    for name, value in (
+        ("position_world", position_world),
+        ("target_world", target_world),
+        ("up_world", up_world),
+    ):
+        points[name] = np.asarray(value, dtype=float)
+        if points[name].shape != (3,) or not np.all(np.isfinite(points[name])):
+            raise ValueError(f"{name} must be three finite numbers, got {value!r}")
+    forward = points["target_world"] - points["position_world"]
     norm = np.linalg.norm(forward)
     if not np.isfinite(norm) or norm < 1e-12:
         raise ValueError("target_world must differ from position_world and both must be finite")
     z = forward / norm
-    up = np.asarray(up_world, dtype=float)
+    up = points["up_world"]
     x = np.cross(z, up)  # camera x (right) = forward x up
     if np.linalg.norm(x) < 1e-9:
         raise ValueError(

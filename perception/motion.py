@@ -17,7 +17,7 @@ import numpy as np
 
 from associator.encoding import DIRECTIVES
 from perception.drive import DriveSpeeds
-from perception.pose import wrap_radians
+from perception.pose import check_planar_pose, wrap_radians
 
 #: Label used for "no directive inferred" in confusion matrices.
 NO_DIRECTIVE = "none"
@@ -52,12 +52,13 @@ class DirectiveConfig:
 def body_rates(pose_before, pose_after, dt_s: float) -> tuple[float, float]:
     """Returns ``(v_mps, w_radps)``: speed along the mean heading and turn rate between two poses.
 
-    Poses are ``(x_m, y_m, yaw_rad)`` in the world frame; ``dt_s`` > 0 seconds.
+    Poses are ``(x_m, y_m, yaw_rad)`` in the world frame, finite (ValueError naming the pose
+    otherwise; ``infer_directives`` is the one that takes lost, NaN poses); ``dt_s`` > 0 seconds.
     """
     if not np.isfinite(dt_s) or dt_s <= 0:
         raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
-    x0, y0, yaw0 = (float(v) for v in pose_before)
-    x1, y1, yaw1 = (float(v) for v in pose_after)
+    x0, y0, yaw0 = check_planar_pose(pose_before, "pose_before")
+    x1, y1, yaw1 = check_planar_pose(pose_after, "pose_after")
     dyaw = float(wrap_radians(yaw1 - yaw0))
     mid = yaw0 + 0.5 * dyaw
     v = ((x1 - x0) * np.cos(mid) + (y1 - y0) * np.sin(mid)) / dt_s

@@ -48,6 +48,11 @@ class WheelOdometry:
             raise ValueError(
                 f"start_pose must be 3 finite numbers (x_m, y_m, yaw_rad), got {start_pose!r}"
             )
+        if not (math.isfinite(left_angle) and math.isfinite(right_angle)):
+            raise ValueError(
+                f"left_angle and right_angle must be finite radians, got {left_angle!r}, "
+                f"{right_angle!r}"
+            )
         self.geometry = geometry
         self.pose = pose.copy()
         self._last = (float(left_angle), float(right_angle))

@@ -21,7 +21,7 @@ import numpy as np
 
 from perception.camera import PinholeCamera
 from perception.layout import SIDE_MARKER_HEIGHT_M
-from perception.pose import robot_to_world
+from perception.pose import check_planar_pose, robot_to_world
 from perception.wallframe import wrap_degrees
 
 
@@ -63,9 +63,21 @@ class HeadMount:
     position_m: tuple[float, float, float] = (0.19, 0.0, 1.20)
 
 
+def _check_angles(**angles) -> None:
+    """Raises ValueError naming the first of ``angles`` (name=number) that is not finite."""
+    for name, value in angles.items():
+        try:
+            finite = math.isfinite(value)
+        except TypeError:
+            finite = False
+        if not finite:
+            raise ValueError(f"{name} must be a finite number, got {value!r}")
+
+
 def head_camera_rotation(yaw_rad: float, pan_deg: float, tilt_deg: float) -> np.ndarray:
     """Returns ``rotation_world_from_camera`` (OpenCV axes) of the head on a robot with heading
     ``yaw_rad``."""
+    _check_angles(yaw_rad=yaw_rad, pan_deg=pan_deg, tilt_deg=tilt_deg)
     azimuth = yaw_rad + math.radians(pan_deg)
     elevation = math.radians(tilt_deg)
     ca, sa, ce, se = math.cos(azimuth), math.sin(azimuth), math.cos(elevation), math.sin(elevation)
@@ -76,6 +88,7 @@ def head_camera_rotation(yaw_rad: float, pan_deg: float, tilt_deg: float) -> np.
 def head_position_world(observer_pose, mount: HeadMount = HeadMount()) -> np.ndarray:
     """Returns the head's optical centre in the world, metres, shape (3,), for ``(x_m, y_m,
     yaw_rad)``."""
+    check_planar_pose(observer_pose, "observer_pose")
     rotation, position = robot_to_world(*observer_pose)
     return rotation @ np.asarray(mount.position_m, dtype=float) + position
 
@@ -89,11 +102,8 @@ def head_camera(
 ) -> PinholeCamera:
     """Returns ``intrinsics`` posed as the head camera of a robot at ``observer_pose`` (x_m, y_m,
     yaw_rad)."""
-    values = (*observer_pose, pan_deg, tilt_deg)
-    if len(values) != 5 or not np.all(np.isfinite(values)):
-        raise ValueError(
-            f"observer_pose must be 3 finite numbers and pan/tilt finite, got {values!r}"
-        )
+    check_planar_pose(observer_pose, "observer_pose")
+    _check_angles(pan_deg=pan_deg, tilt_deg=tilt_deg)
     return intrinsics.with_pose(
         head_camera_rotation(observer_pose[2], pan_deg, tilt_deg),
         head_position_world(observer_pose, mount),
@@ -106,7 +116,12 @@ def aim_at(observer_pose, target_world, mount: HeadMount = HeadMount()) -> tuple
     Pan is wrapped to [-180, 180).
     """
     head = head_position_world(observer_pose, mount)
-    d = np.asarray(target_world, dtype=float) - head
+    target = np.asarray(target_world, dtype=float)
+    if target.shape != (3,) or not np.all(np.isfinite(target)):
+        raise ValueError(
+            f"target_world must be three finite metres (x, y, z), got {target_world!r}"
+        )
+    d = target - head
     horizontal = float(np.hypot(d[0], d[1]))
     pan = float(wrap_degrees(np.degrees(np.arctan2(d[1], d[0]) - observer_pose[2])))
     tilt = float(np.degrees(np.arctan2(d[2], horizontal)))
@@ -167,6 +182,11 @@ class PanTiltController:
             raise ValueError(
                 f"search_tilt_deg must be within the tilt limits, got {search_tilt_deg!r}"
             )
+        _check_angles(
+            target_height_m=target_height_m,
+            initial_pan_deg=initial_pan_deg,
+            initial_tilt_deg=initial_tilt_deg,
+        )
         self.search_pan_deg = float(search_pan_deg)
         self.search_tilt_deg = float(search_tilt_deg)
         self._search_direction = 1.0
@@ -186,6 +206,13 @@ class PanTiltController:
         """
         if not np.isfinite(dt_s) or dt_s <= 0:
             raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+        check_planar_pose(observer_pose, "observer_pose")
+        if target_xy is not None:
+            target = np.asarray(target_xy, dtype=float)
+            if target.shape != (2,) or not np.all(np.isfinite(target)):
+                raise ValueError(
+                    f"target_xy must be None or two finite metres (x, y), got {target_xy!r}"
+                )
         lim = self.limits
         if target_xy is None:
             if self.search_pan_deg == 0.0:

@@ -38,9 +38,26 @@ def wrap_radians(angle_rad):
     return (np.asarray(angle_rad, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def check_planar_pose(pose, name: str = "pose") -> tuple[float, float, float]:
+    """Returns ``pose`` ``(x_m, y_m, yaw_rad)`` as three floats; raises ValueError naming ``name``
+    unless it is three finite numbers."""
+    try:
+        values = np.asarray(pose, dtype=float)
+    except (TypeError, ValueError):
+        values = np.empty(0)
+    if values.shape != (3,) or not np.all(np.isfinite(values)):
+        raise ValueError(f"{name} must be three finite numbers (x_m, y_m, yaw_rad), got {pose!r}")
+    x, y, yaw = values.tolist()
+    return x, y, yaw
+
+
 def robot_to_world(x_m: float, y_m: float, yaw_rad: float) -> tuple[np.ndarray, np.ndarray]:
     """Returns ``(rotation_world_from_robot (3, 3), position_world (3,))`` of a level robot on the
     floor."""
+    if not (math.isfinite(x_m) and math.isfinite(y_m) and math.isfinite(yaw_rad)):
+        raise ValueError(
+            f"x_m, y_m and yaw_rad must be finite numbers, got {x_m!r}, {y_m!r}, {yaw_rad!r}"
+        )
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
     rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     return rotation, np.array([x_m, y_m, 0.0])
@@ -174,6 +191,7 @@ def fit_planar_pose(
       camera: the camera with its extrinsics.
       iterations: the most Levenberg-Marquardt steps.
     """
+    check_planar_pose(initial, "initial")
     observed_n = _normalised_observations(np.asarray(observed_px, dtype=float), camera)
     return _fit_normalised(
         initial, np.asarray(corners_robot, dtype=float), observed_n, _Projection(camera), iterations
@@ -325,7 +343,8 @@ def fit_robot_pose(
       corners: ``(marker_id, corners_px (4, 2))`` of the robot's detected markers (TL, TR, BR, BL).
       camera: the camera with its extrinsics.
       robot: which robot.
-      initial: starting ``(x_m, y_m, yaw_rad)``.
+      initial: starting ``(x_m, y_m, yaw_rad)`` (unused, may be None, when every marker is a top
+        plate).
       layout, arena, pixel_noise_px: as for :func:`estimate_robot_pose`.
       iterations: the most Levenberg-Marquardt steps (from a tracker's prediction, a few suffice);
         when every marker is a horizontal (top) plate the closed-form
@@ -343,6 +362,8 @@ def fit_robot_pose(
         # Only top plates: the closed-form floor-plane fit is already the answer.
         initial = _horizontal_fit(corners_robot, observed_n, camera)
         iterations = 0
+    else:
+        check_planar_pose(initial, "initial")
     params, residuals, jac = _fit_normalised(
         initial, corners_robot, observed_n, _Projection(camera), iterations
     )

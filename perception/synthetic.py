@@ -16,7 +16,7 @@ import numpy as np
 
 from perception.camera import PinholeCamera
 from perception.layout import DICTIONARY_NAME, QUIET_ZONE_M, MarkerPlacement, default_layout
-from perception.pose import robot_to_world
+from perception.pose import check_planar_pose, robot_to_world
 
 #: Texture pixels per marker cell (a 4x4 marker with its one-cell border is 6 cells wide).
 _CELL_PX = 12
@@ -71,6 +71,8 @@ def render_markers(
         raise ValueError(
             f"unknown robots {sorted(unknown)}; allowed: {sorted({p.robot for p in layout})}"
         )
+    for robot, pose in robot_poses.items():
+        check_planar_pose(pose, f"robot_poses[{robot!r}]")
     rng = np.random.default_rng(rng)
     dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, DICTIONARY_NAME))
     ss = int(supersample)
@@ -135,6 +137,7 @@ def true_corners(
 ) -> np.ndarray:
     """Returns the exact pixel corners, shape (4, 2), TL, TR, BR, BL, of a placed marker's black
     square."""
+    check_planar_pose(robot_pose, "robot_pose")
     rotation_wr, position_wr = robot_to_world(*robot_pose)
     corners_world = placement.corners_robot() @ rotation_wr.T + position_wr
     return camera.project(corners_world)

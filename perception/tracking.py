@@ -218,6 +218,8 @@ class KalmanTrack:
     def predict_pose(self, time_s: float) -> np.ndarray | None:
         """Returns the pose ``(x_m, y_m, yaw_rad)`` the track expects at ``time_s`` without changing
         the track, or None if it is lost (or would be lost by then)."""
+        if not np.isfinite(time_s):
+            raise ValueError(f"time_s must be finite, got {time_s!r}")
         if self.state_ is None or time_s - self.last_seen_s_ > self.config.max_coast_s:
             return None
         dt = max(time_s - self.time_s_, 0.0)

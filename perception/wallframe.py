@@ -85,8 +85,18 @@ class ArenaGeometry:
     def clear_of_table(self, x_world: float, y_world: float, margin_m: float) -> bool:
         """Returns whether the world point (metres) lies at least ``margin_m`` outside the table's
         footprint along either axis (a box test, as for a robot's centre with that clearance)."""
+        _check_finite(x_world=x_world, y_world=y_world, margin_m=margin_m)
         x0, x1, y0, _ = self.table_box
         return not (x0 - margin_m < x_world < x1 + margin_m and y_world > y0 - margin_m)
+
+    def table_gap_m(self, x_world: float, y_world: float) -> float:
+        """Returns the distance in metres from the world point to the table's footprint, 0 on or
+        inside it (a disc of that radius around the point just touches the table)."""
+        _check_finite(x_world=x_world, y_world=y_world)
+        x0, x1, y0, y1 = self.table_box
+        return math.hypot(
+            max(x0 - x_world, 0.0, x_world - x1), max(y0 - y_world, 0.0, y_world - y1)
+        )
 
 
 @dataclasses.dataclass(frozen=True)
@@ -103,6 +113,17 @@ class WallPose:
         return np.array([self.x_m, self.y_m, self.phi_deg], dtype=float)
 
 
+def _check_finite(**values) -> None:
+    """Raises ValueError naming the first of ``values`` (name=number) that is not a finite number."""
+    for name, value in values.items():
+        try:
+            finite = math.isfinite(value)
+        except TypeError:
+            finite = False
+        if not finite:
+            raise ValueError(f"{name} must be a finite number, got {value!r}")
+
+
 def _check_wall(wall: str) -> None:
     if wall not in _NORMALS:
         raise ValueError(f"unknown wall {wall!r}; allowed: {', '.join(WALL_NAMES)}")
@@ -110,6 +131,7 @@ def _check_wall(wall: str) -> None:
 
 def nearest_wall(x_world: float, y_world: float) -> str:
     """Returns the name of the wall whose diagonal area holds the world point (metres)."""
+    _check_finite(x_world=x_world, y_world=y_world)
     best, best_score = WALL_NAMES[0], -math.inf
     for wall in WALL_NAMES:
         nx, ny = _NORMALS[wall]
@@ -160,8 +182,9 @@ def world_to_wall_batch(
     x = np.asarray(x_world, dtype=float)
     y = np.asarray(y_world, dtype=float)
     yaw = np.asarray(yaw_rad, dtype=float)
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y)) and np.all(np.isfinite(yaw))):
-        raise ValueError("poses must be finite")
+    for name, values in (("x_world", x), ("y_world", y), ("yaw_rad", yaw)):
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"{name} must be finite, got {values[~np.isfinite(values)][:3]!r}")
     normals = np.array([_NORMALS[w] for w in WALL_NAMES])
     wall = np.argmax(x[:, None] * normals[:, 0] + y[:, None] * normals[:, 1], axis=1)
     nx, ny = normals[wall, 0], normals[wall, 1]
@@ -177,6 +200,7 @@ def wall_to_world(
 ) -> tuple[float, float, float]:
     """Returns ``(x_world, y_world, yaw_rad)`` for a wall-frame pose (the inverse of ``world_to_wall``)."""
     _check_wall(pose.wall)
+    _check_finite(**{f"pose.{name}": getattr(pose, name) for name in ("x_m", "y_m", "phi_deg")})
     nx, ny = _NORMALS[pose.wall]
     tx, ty = ny, -nx
     depth = arena.half_side_m - pose.x_m

@@ -16,8 +16,9 @@ from absl.testing import absltest
 from dm_control import composer, mjcf
 from dm_env import test_utils
 
+from imitation import performance
 from imitation.streams import StreamGenerator
-from peoplebot_sim import cameras, directives, task
+from peoplebot_sim import assets, cameras, directives, entities, task
 from peoplebot_sim.rendering import FrameRenderer
 from perception import layout
 from perception.markers import DetectorConfig
@@ -117,6 +118,128 @@ def test_consecutive_observations_do_not_share_memory():
 def test_bad_task_config_raises_naming_the_value(overrides, value):
     with pytest.raises(ValueError, match=value):
         task.TaskConfig(**overrides)
+
+
+NOT_THREE = "must be None or three finite numbers"
+OUTSIDE = "lies outside the arena: x and y must be within [+]-1.667 m for a robot of radius 0.333 m"
+
+
+@pytest.mark.parametrize(
+    "poses, message",
+    [
+        ({"student_pose": (100, 100, 0)}, rf"student_pose \(100.0, 100.0, 0.0\) {OUTSIDE}"),
+        ({"teacher_pose": (0.0, -1.7, 0.0)}, rf"teacher_pose \(0.0, -1.7, 0.0\) {OUTSIDE}"),
+        ({"student_pose": (1.68, 0.0, 0.0)}, rf"student_pose \(1.68, 0.0, 0.0\) {OUTSIDE}"),
+        (
+            {"student_pose": (0.0, 1.4, 0.0)},
+            r"student_pose \(0.0, 1.4, 0.0\) overlaps the table: a robot of radius 0.333 m needs "
+            r"its centre at least 0.333 m from the table's footprint \(x -0.5 to 0.5 m, y 1.6 to 2 "
+            r"m\), got 0.200 m",
+        ),
+        # Off the table's corner: 0.212 m from it along each axis, 0.300 m diagonally.
+        (
+            {"teacher_pose": (0.712, 1.388, 0.0)},
+            "teacher_pose .* overlaps the table: .* got 0.300 m",
+        ),
+        (
+            {"student_pose": (0, 0, 0), "teacher_pose": (0, 0, 0)},
+            r"teacher_pose \(0.0, 0.0, 0.0\) overlaps student_pose \(0.0, 0.0, 0.0\): the robots' "
+            r"centres must be at least 0.666 m apart \(two robots of radius 0.333 m\), got 0.000 m",
+        ),
+        (
+            {"teacher_pose": (-1.0, -1.2, 0.0)},
+            r"teacher_pose \(-1.0, -1.2, 0.0\) overlaps the student's watching spot \(-1.45, -1.45",
+        ),
+        (
+            {"student_pose": (0.0, 0.0, math.nan)},
+            f"student_pose {NOT_THREE} .*, got \\(0.0, 0.0, nan\\)",
+        ),
+        ({"teacher_pose": np.array([0.0, np.inf, 0.0])}, f"teacher_pose {NOT_THREE}"),
+        ({"student_pose": (0.0, 0.0)}, f"student_pose {NOT_THREE} .*, got \\(0.0, 0.0\\)"),
+        ({"student_pose": ("0", "0", "0")}, f"student_pose {NOT_THREE}"),
+        ({"student_pose": np.zeros((3, 1))}, f"student_pose {NOT_THREE}"),
+        ({"student_pose": [0.0, [0.0], 0.0]}, f"student_pose {NOT_THREE}"),
+        ({"student_pose": (True, False, True)}, f"student_pose {NOT_THREE}"),
+    ],
+)
+def test_start_poses_off_the_free_floor_are_refused(start_task, poses, message):
+    """A start must put the robot (the disc of ``entities.BASE_RADIUS_M``) inside the walls, clear
+    of the table and of the other robot, in the configuration and in ``set_start`` alike."""
+    with pytest.raises(ValueError, match=message):
+        task.TaskConfig(**poses)
+    with pytest.raises(ValueError, match=message):
+        start_task.set_start(**poses)
+
+
+@pytest.fixture(scope="module")
+def start_task():
+    return task.ImitationTask(task.TaskConfig())
+
+
+def test_set_start_checks_the_robots_apart_against_the_configured_start():
+    configured = task.ImitationTask(task.TaskConfig(student_pose=(0.0, 0.0, 0.0)))
+    with pytest.raises(ValueError, match=r"teacher_pose \(0.5, 0.0, 0.0\) overlaps TaskConfig.stu"):
+        configured.set_start(teacher_pose=(0.5, 0.0, 0.0))
+    configured = task.ImitationTask(task.TaskConfig(teacher_pose=(1.0, 1.0, 0.0)))
+    with pytest.raises(ValueError, match=r"TaskConfig.teacher_pose \(1.0, 1.0, 0.0\) overlaps st"):
+        configured.set_start(student_pose=(1.2, 0.9, 0.0))
+    configured.set_start(student_pose=(-1.0, -1.0, 0.0))  # the teacher stays clear of this one
+    # Without a teacher in the world, its pose takes no room.
+    task.TaskConfig(with_teacher=False, student_pose=(0, 0, 0), teacher_pose=(0, 0, 0))
+
+
+def test_start_poses_of_the_experiment_are_accepted(start_task):
+    """Every start the performance trials draw (the docked 'lift' start 0.425 m in front of the
+    table, 'pick' starts 1.0-1.6 m from a wall), the dock at each wall, Fig. 4's start, the watching
+    spot and poses 0.45 m from the walls put the robot on the free floor."""
+    rng = np.random.default_rng(0)
+    starts = [performance.sample_start(row, rng)[0] for row in performance.ROWS for _ in range(500)]
+    starts += [performance.dock_pose_at(wall) for wall in ("top", "right", "bottom", "left")]
+    starts += [performance.FIG4_START, task.STUDENT_WATCH_POSE, (1.55, -1.55, 2.0)]
+    starts += [start_task.random_free_pose(rng, margin_m=0.45) for _ in range(500)]
+    for start in starts:
+        start_task.set_start(student_pose=start)
+        assert task.TaskConfig(with_teacher=False, student_pose=start).student_pose == start
+    docked = performance.dock_pose_at("top")
+    assert start_task.geometry.table_gap_m(*docked[:2]) == pytest.approx(0.425)
+
+
+def test_start_poses_are_any_array_like_and_the_run_starts_there():
+    """A numpy array is a pose like any other (it once failed on its truth value); the start is
+    kept as a tuple of floats and the student starts there."""
+    config = task.TaskConfig(with_teacher=False, student_pose=np.array([0.5, -0.6, 0.3]))
+    assert config.student_pose == (0.5, -0.6, 0.3)
+    assert all(type(v) is float for v in config.student_pose)
+    env = task.load(with_teacher=False, seed=0)
+    env.task.set_start(student_pose=np.array([1, -1, 0]))
+    np.testing.assert_allclose(env.reset().observation["student_pose"], [1, -1, 0], atol=1e-9)
+    env.close()
+
+
+def test_base_radius_holds_the_base_footprint_but_not_the_gripper():
+    """``entities.BASE_RADIUS_M`` reaches the chassis' corners (the footprint, the one source) and
+    every other collision geom of the base (wheels, casters, column, deck); the gripper's paddles
+    reach beyond it."""
+    model = mujoco.MjModel.from_xml_path(str(assets.PEOPLEBOT_XML))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    gripper = {model.body(name).id for name in ("gripper", "left_paddle", "right_paddle")}
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    reach = {"base": 0.0, "gripper": 0.0}
+    for g in range(model.ngeom):
+        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
+            continue  # visual only
+        centre, size = data.geom_xpos[g], model.geom_size[g]
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
+            planar = math.hypot(*centre[:2]) + size[0]
+        else:
+            assert model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX, model.geom(g).name
+            corners = centre + (signs * size) @ data.geom_xmat[g].reshape(3, 3).T
+            planar = np.hypot(corners[:, 0], corners[:, 1]).max()
+        part = "gripper" if model.geom_bodyid[g] in gripper else "base"
+        reach[part] = max(reach[part], planar)
+    assert reach["base"] == pytest.approx(entities.BASE_RADIUS_M, abs=1e-9)
+    assert reach["gripper"] > entities.BASE_RADIUS_M + 0.02
 
 
 def test_bad_renderer_size_raises_naming_the_value():
