@@ -12,6 +12,14 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL before anything imports mujo
 RENDERS = pathlib.Path("renders")
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (the bad argument and where to look), exit
+    status 2."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _positive_int(text: str) -> int:
     value = int(text)
     if value <= 0:
@@ -118,14 +126,14 @@ def _cmd_figures(args) -> int:
     from associator import figures, persistence
     from associator.network import Associator
 
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     model = persistence.load(args.network)
+    out = pathlib.Path(args.out)
     if not isinstance(model, Associator):
-        raise SystemExit(
+        raise ValueError(
             f"{args.network} holds a {type(model).__name__}; the paper's figures need the paper's "
             "network (a run folder's network.npz)"
         )
+    out.mkdir(parents=True, exist_ok=True)
     written = [
         figures.fig3_word_codes(out / "fig3_word_codes.png"),
         figures.fig5_language_weights(model, out / "fig5_language_weights.png"),
@@ -136,41 +144,65 @@ def _cmd_figures(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="peoplebot",
         description="A student PeopleBot learns go, pick and lift by watching a teacher PeopleBot.",
     )
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser.add_argument(
+        "--debug", action="store_true", help="show the traceback of an expected failure too"
+    )
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    debug = _Parser(add_help=False)
+    debug.add_argument(
+        "--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS
+    )
+    defaults = {"formatter_class": argparse.ArgumentDefaultsHelpFormatter, "parents": [debug]}
 
-    demo = sub.add_parser("demo", help="video of the teacher looping go-pick-lift, with a summary")
+    demo = sub.add_parser(
+        "demo", help="video of the teacher looping go-pick-lift, with a summary", **defaults
+    )
     demo.add_argument("--seconds", type=_positive_float, default=180.0, help="simulated seconds")
-    demo.add_argument("--width", type=_positive_int, default=640)
-    demo.add_argument("--height", type=_positive_int, default=480)
-    demo.add_argument("--seed", type=int, default=0)
-    demo.add_argument("--camera", choices=("showcase", "overhead"), default="showcase")
+    demo.add_argument("--width", type=_positive_int, default=640, help="video width, pixels")
+    demo.add_argument("--height", type=_positive_int, default=480, help="video height, pixels")
+    demo.add_argument("--seed", type=int, default=0, help="the teacher's start and jitter")
+    demo.add_argument(
+        "--camera", choices=("showcase", "overhead"), default="showcase", help="the view"
+    )
     demo.add_argument("--speedup", type=_positive_float, default=2.0, help="playback speed")
-    demo.add_argument("--out", type=pathlib.Path, default=RENDERS / "demo" / "teacher.mp4")
+    demo.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=RENDERS / "demo" / "teacher.mp4",
+        help="the video; the summary goes beside it as .json",
+    )
     demo.add_argument("--no-video", action="store_true", help="write the JSON summary only")
-    demo.add_argument("--no-shadows", action="store_true")
+    demo.add_argument("--no-shadows", action="store_true", help="render faster, without shadows")
     demo.add_argument("--quiet", action="store_true", help="no progress bar")
     demo.set_defaults(func=_cmd_demo)
 
-    bench = sub.add_parser("track-bench", help="vision accuracy and speed on rendered frames")
+    bench = sub.add_parser(
+        "track-bench", help="vision accuracy and speed on rendered frames", **defaults
+    )
     bench.add_argument("--samples", type=_positive_int, default=200, help="frames per viewpoint")
-    bench.add_argument("--width", type=_positive_int, default=320)
-    bench.add_argument("--height", type=_positive_int, default=240)
-    bench.add_argument("--seed", type=int, default=0)
-    bench.add_argument("--out", type=pathlib.Path, default=RENDERS / "track_bench.json")
-    bench.add_argument("--quiet", action="store_true")
+    bench.add_argument("--width", type=_positive_int, default=320, help="frame width, pixels")
+    bench.add_argument("--height", type=_positive_int, default=240, help="frame height, pixels")
+    bench.add_argument("--seed", type=int, default=0, help="the sampled poses")
+    bench.add_argument(
+        "--out", type=pathlib.Path, default=RENDERS / "track_bench.json", help="the JSON report"
+    )
+    bench.add_argument("--quiet", action="store_true", help="no progress bar")
     bench.set_defaults(func=_cmd_track_bench)
 
     rep = sub.add_parser(
-        "reproduce", help="the paper's experiment end to end: watch, learn, recognise, perform"
+        "reproduce",
+        help="the paper's experiment end to end: watch, learn, recognise, perform",
+        parents=[debug],
     )
     rep.add_argument(
         "--quick",
         action="store_true",
-        help="the 'quick' preset: the same stages at a small scale (about a minute on 2 cores)",
+        help="the 'quick' preset: the same stages at a small scale (about a minute on 2 cores); "
+        "the defaults in brackets below are the full run's",
     )
     rep.add_argument(
         "--config",
@@ -191,18 +223,31 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="the teacher's directive is given (default) or inferred from motion",
     )
-    rep.add_argument("--seed", type=int, default=None)
-    rep.add_argument("--train-steps", type=_positive_int, default=None)
-    rep.add_argument("--test-steps", type=_positive_int, default=None)
+    rep.add_argument(
+        "--seed", type=int, default=None, help="one seed for streams, networks and trials (0)"
+    )
+    rep.add_argument(
+        "--train-steps", type=_positive_int, default=None, help="steps watched to learn (1000000)"
+    )
+    rep.add_argument(
+        "--test-steps",
+        type=_positive_int,
+        default=None,
+        help="steps watched for Table I (1000000)",
+    )
     rep.add_argument(
         "--vision-test-steps",
         type=_positive_int,
         default=None,
         help="steps watched through the camera for recognition (camera modes)",
     )
-    rep.add_argument("--trials", type=_positive_int, default=None, help="random starts per word")
-    rep.add_argument("--trial-seconds", type=_positive_float, default=None)
-    rep.add_argument("--workers", type=_positive_int, default=None)
+    rep.add_argument(
+        "--trials", type=_positive_int, default=None, help="random starts per word (50)"
+    )
+    rep.add_argument(
+        "--trial-seconds", type=_positive_float, default=None, help="length of a trial (60)"
+    )
+    rep.add_argument("--workers", type=_positive_int, default=None, help="parallel processes (2)")
     rep.add_argument(
         "--drive",
         choices=("graded", "directive"),
@@ -210,16 +255,23 @@ def build_parser() -> argparse.ArgumentParser:
         help="the student's wheels follow its graded motor activations (default) or the "
         "strongest directive",
     )
-    rep.add_argument("--no-videos", action="store_true")
+    rep.add_argument("--no-videos", action="store_true", help="skip the student videos")
     rep.add_argument(
         "--paper-only",
         action="store_true",
         help="only the paper's network (no hierarchical associator row)",
     )
     rep.add_argument(
-        "--out", type=pathlib.Path, default=None, help="run folder (resumed if present)"
+        "--out",
+        type=pathlib.Path,
+        default=None,
+        help="run folder, resumed if present (renders/reproduce/<vision>-<motor source>-seed<seed>)",
     )
-    rep.add_argument("--fresh", action="store_true", help="start the run folder over")
+    rep.add_argument(
+        "--fresh",
+        action="store_true",
+        help="remove everything an earlier run wrote into the folder, then start over",
+    )
     rep.add_argument(
         "--reuse-from",
         type=pathlib.Path,
@@ -229,20 +281,42 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.set_defaults(func=_cmd_reproduce)
 
-    fig = sub.add_parser("figures", help="the paper's Figs. 3, 5 and 6 from a saved network")
-    fig.add_argument("--network", type=pathlib.Path, required=True, help="an associator .npz")
-    fig.add_argument("--out", type=pathlib.Path, default=RENDERS / "figures")
+    fig = sub.add_parser(
+        "figures", help="the paper's Figs. 3, 5 and 6 from a saved network", **defaults
+    )
+    fig.add_argument(
+        "--network",
+        type=pathlib.Path,
+        required=True,
+        help="a saved paper's network (a run folder's network.npz)",
+    )
+    fig.add_argument(
+        "--out", type=pathlib.Path, default=RENDERS / "figures", help="folder for the PNGs"
+    )
     fig.set_defaults(func=_cmd_figures)
     return parser
 
 
 def main(argv=None) -> int:
+    """Runs a ``peoplebot`` command. Expected failures (bad settings, unreadable or corrupt files,
+    unwritable folders, a run folder of other settings) are one line on stderr and exit status 2;
+    ``--debug`` shows their traceback. Anything else is a bug and shows its traceback."""
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except ValueError as error:
-        print(f"peoplebot {args.command}: error: {error}", file=sys.stderr)
+    except (ValueError, OSError) as error:
+        if args.debug:
+            raise
+        print(f"peoplebot {args.command}: error: {_one_line(error)}", file=sys.stderr)
         return 2
+
+
+def _one_line(error: Exception) -> str:
+    """Returns an expected failure as one line: a file error names the file and what went wrong."""
+    if isinstance(error, OSError) and error.strerror:
+        where = f"{error.filename}: " if error.filename else ""
+        return f"{where}{error.strerror.lower()}"
+    return " ".join(str(error).split())
 
 
 if __name__ == "__main__":

@@ -32,6 +32,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+#: The largest run seed: the streams and the camera run draw seeds 2 seed + 1 to 2 seed + 3, which
+#: numpy's legacy seeding (dm-control's environments) takes below 2**32.
+MAX_SEED = (2**32 - 1 - 3) // 2
+
 _NETWORK_DEFAULTS = Associator().get_params()
 _HIERARCHY_DEFAULTS = HierarchicalAssociator().get_params()
 
@@ -244,8 +248,12 @@ class RunConfig:
     videos: VideoConfig = VideoConfig()
 
     def __post_init__(self):
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, int)
+            or not 0 <= self.seed <= MAX_SEED
+        ):
+            raise ValueError(f"seed must be an integer in [0, {MAX_SEED}], got {self.seed!r}")
         _check_count("workers", self.workers)
 
     @classmethod

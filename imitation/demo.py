@@ -16,6 +16,9 @@ from peoplebot_sim import directives
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import load
 
+#: The longest demo, simulated seconds.
+MAX_SECONDS = 86_400.0
+
 
 @dataclasses.dataclass(frozen=True)
 class DemoConfig:
@@ -41,16 +44,29 @@ class DemoConfig:
     shadows: bool = True
 
     def __post_init__(self):
-        if not (np.isfinite(self.seconds) and self.seconds > 0):
-            raise ValueError(f"seconds must be a positive number, got {self.seconds!r}")
+        if not (np.isfinite(self.seconds) and 0.1 <= self.seconds <= MAX_SECONDS):
+            raise ValueError(
+                f"seconds must be at least one control step (0.1 s) and at most {MAX_SECONDS:.0f} "
+                f"(a day), got {self.seconds!r}"
+            )
+        if (
+            isinstance(self.seed, bool)
+            or not isinstance(self.seed, int)
+            or not 0 <= self.seed < 2**32
+        ):
+            raise ValueError(f"seed must be an integer in [0, 2**32), got {self.seed!r}")
         if self.camera not in ("showcase", "overhead"):
             raise ValueError(f"unknown camera {self.camera!r}; allowed: showcase, overhead")
         if not (np.isfinite(self.speedup) and self.speedup > 0):
             raise ValueError(f"speedup must be positive, got {self.speedup!r}")
         for name in ("width", "height"):
             value = getattr(self, name)
-            if not isinstance(value, int) or value <= 0 or value % 2:
-                raise ValueError(f"{name} must be a positive even number of pixels, got {value!r}")
+            if not isinstance(value, int) or not 16 <= value <= 1280 or value % 2:
+                raise ValueError(
+                    f"{name} must be an even number of pixels in [16, 1280], got {value!r}"
+                )
+        if self.height > 960:
+            raise ValueError(f"height must be at most 960 pixels, got {self.height}")
 
 
 def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:

@@ -41,9 +41,16 @@ def poll(futures: list, progress_files: list, total: int, desc: str) -> list:
 def run_parallel(fn, jobs: list, args: tuple, workers: int, folder, desc: str, total: int) -> list:
     """Runs ``fn(job, *args, progress_file)`` for every job in up to ``workers`` spawned processes
     (each job's worker writes its count of finished units into its progress file, inside
-    ``folder``); returns the results in job order."""
+    ``folder``); returns the results in job order. With one worker the jobs run in this process,
+    one after the other."""
     folder = pathlib.Path(folder)
     progress = [folder / f".{desc.replace(' ', '_')}.{i}.progress" for i in range(len(jobs))]
+    if workers == 1:
+        print(f"{desc}: {total} in this process")
+        results = [fn(job, *args, str(p)) for job, p in zip(jobs, progress, strict=True)]
+        for p in progress:
+            p.unlink(missing_ok=True)
+        return results
     context = multiprocessing.get_context("spawn")
     with concurrent.futures.ProcessPoolExecutor(
         max_workers=workers,

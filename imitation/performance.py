@@ -31,6 +31,7 @@ import numpy as np
 from associator import encoding
 from associator.network import Associator
 from imitation.observers import StudentVision, pose_or_nan
+from peoplebot_sim.entities import BASE_RADIUS_M
 from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception.drive import DriveSpeeds
 from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall, wrap_degrees
@@ -192,11 +193,14 @@ def sample_start(
                 return start, wall
     if row == "lift":
         dock = Teacher(teacher, arena=arena).dock_pose
-        return (
-            dock[0] + float(rng.normal(0, 0.02)),
-            dock[1] + float(rng.normal(0, 0.02)),
-            dock[2] + math.radians(float(rng.normal(0, 2.0))),
-        ), "top"
+        while True:  # a draw over 4.6 sd towards the table would overlap it: drawn again
+            start = (
+                dock[0] + float(rng.normal(0, 0.02)),
+                dock[1] + float(rng.normal(0, 0.02)),
+                dock[2] + math.radians(float(rng.normal(0, 2.0))),
+            )
+            if arena.table_gap_m(start[0], start[1]) >= BASE_RADIUS_M:
+                return start, "top"
     raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
 
 

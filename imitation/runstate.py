@@ -34,6 +34,8 @@ RUN_FILES = (
     "student_lift.mp4",
 )
 RUN_FOLDERS = ("streams", "figures")
+#: Settings that change how a run is carried out but not its results: a folder resumes with others.
+RUNTIME_SETTINGS = ("workers",)
 _FORMAT = "peoplebot-run"
 
 
@@ -98,12 +100,13 @@ class RunState:
                 f"{self.folder} was made by peoplebot-imitation {saved['version']}, this is "
                 f"{self.version}; {fix}"
             )
-        if saved["config"] != config:
-            changed = differing_keys(saved["config"], config)
+        if _identity(saved["config"]) != _identity(config):
+            changed = differing_keys(_identity(saved["config"]), _identity(config))
             raise ValueError(
                 f"{self.folder} holds a run with other settings ({', '.join(changed)}); use "
                 "another --out folder or --fresh to start over"
             )
+        saved["config"] = config
         return saved
 
     def done(self, stage: str) -> bool:
@@ -179,6 +182,11 @@ def _lock(path: pathlib.Path) -> int:
     os.ftruncate(fd, 0)
     os.pwrite(fd, str(os.getpid()).encode(), 0)
     return fd
+
+
+def _identity(config: dict) -> dict:
+    """Returns the settings that decide a run's results (the configuration less the runtime ones)."""
+    return {k: v for k, v in config.items() if k not in RUNTIME_SETTINGS}
 
 
 def _checksum(data: dict) -> str:

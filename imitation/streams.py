@@ -93,8 +93,11 @@ class TeacherStream:
 
 def stream_provenance(path) -> dict | None:
     """Returns what made a stream file (``TeacherStream.save``'s ``provenance``), or None if the
-    file is unreadable or has none."""
+    file is damaged (any entry failing its checksum) or has none."""
     try:
+        with zipfile.ZipFile(path) as archive:
+            if archive.testzip() is not None:
+                return None
         with np.load(path, allow_pickle=False) as data:
             return json.loads(str(data["provenance"]))
     except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile):

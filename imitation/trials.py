@@ -174,7 +174,9 @@ def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceRes
     results = run_parallel(
         _trials_worker, chunks, (config, networks), workers, folder, "performance trials", len(plan)
     )
-    trials = [t for chunk in results for t in chunk]
+    # In the plan's order, whatever the number of workers.
+    done = {(t.row, t.policy, t.index): t for chunk in results for t in chunk}
+    trials = [done[(p.row, p.policy, p.index)] for p in plan]
     storage.write_text(
         folder / "performance_trials.json", json.dumps([t.to_json() for t in trials], indent=1)
     )
