@@ -39,6 +39,7 @@ from imitation.results import (
     PerformanceResult,
     RecognitionResult,
     Results,
+    StreamsResult,
     StreamSummary,
     package_versions,
 )
@@ -206,36 +207,46 @@ SHARED_LEARNING_SECTIONS = (
 
 def reuse_learning(state: RunState, source) -> None:
     """Copies the streams and the trained networks of the finished run in ``source`` into this
-    run, if both agree on ``SHARED_LEARNING_SECTIONS`` (so vision modes can be compared on one
-    network); raises ValueError otherwise."""
+    run, if both were made by this version, agree on ``SHARED_LEARNING_SECTIONS`` (so vision modes
+    can be compared on one network) and the source's files are intact; raises ValueError
+    otherwise."""
     source = pathlib.Path(source)
     try:
         other = json.loads((source / "state.json").read_text())
-    except (FileNotFoundError, NotADirectoryError, json.JSONDecodeError) as error:
-        raise ValueError(f"{source} is not a run folder ({error})") from None
-    mine = state.data["config"]
-    theirs = other.get("config", {}) if isinstance(other, dict) else {}
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"--reuse-from {source} is not a run folder ({error})") from None
+    if not isinstance(other, dict) or not isinstance(other.get("config"), dict):
+        raise ValueError(f"--reuse-from {source} is not a run folder (its state.json is not one)")
+    if other.get("version") != state.version:
+        raise ValueError(
+            f"--reuse-from {source} was made by peoplebot-imitation {other.get('version')}, this "
+            f"is {state.version}; it cannot be reused"
+        )
+    mine, theirs = state.data["config"], other["config"]
     differing = [k for k in SHARED_LEARNING_SECTIONS if theirs.get(k) != mine.get(k)]
     if differing:
-        raise ValueError(f"{source} was run with other {', '.join(differing)}; it cannot be reused")
-    for stage in ("streams", "learning"):
-        if stage not in other["stages"]:
-            raise ValueError(f"{source} has not finished its {stage} stage")
+        raise ValueError(
+            f"--reuse-from {source} was run with other {', '.join(differing)}; it cannot be reused"
+        )
     if state.done("learning"):
         return
-    (state.folder / "streams").mkdir(exist_ok=True)
-    for name in ("train", "test"):
-        shutil.copyfile(
-            source / "streams" / f"{name}.npz", state.folder / "streams" / f"{name}.npz"
-        )
-    shutil.copyfile(source / "network.npz", state.folder / "network.npz")
-    if mine["hierarchical"]["enabled"]:
-        shutil.copyfile(source / "hierarchical.npz", state.folder / "hierarchical.npz")
-    copied = {
-        "streams": [state.folder / "streams" / f"{name}.npz" for name in ("train", "test")],
-        "learning": [state.folder / "network.npz"]
-        + ([state.folder / "hierarchical.npz"] if mine["hierarchical"]["enabled"] else []),
-    }
+    copied = {}
+    for stage in ("streams", "learning"):
+        if stage not in other.get("stages", {}):
+            raise ValueError(f"--reuse-from {source} has not finished its {stage} stage")
+        copied[stage] = []
+        for name, digest in other.get("artifacts", {}).get(stage, {}).items():
+            path = source / name
+            if not path.is_file() or storage.file_digest(path) != digest:
+                raise ValueError(
+                    f"--reuse-from {source}: {name} is missing or changed since its run; it "
+                    "cannot be reused"
+                )
+            target = state.folder / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            tmp = storage.temporary_name(target)
+            shutil.copyfile(path, tmp)
+            copied[stage].append(storage.commit(tmp, target))
     for stage in ("streams", "learning"):
         state.finish(stage, {**other["stages"][stage], "reused_from": str(source)}, copied[stage])
 
@@ -319,20 +330,13 @@ def collect(config: RunConfig, state: RunState) -> Results:
     def record(stage, kind):
         return kind.from_json(stages[stage]) if stage in stages else None
 
-    streams = stages.get("streams")
     return Results(
         vision=config.vision.mode,
         motor_source=config.learning.motor_source,
         seed=config.seed,
         recognition=record("recognition", RecognitionResult),
         performance=record("performance", PerformanceResult),
-        streams=None
-        if streams is None
-        else {
-            name: StreamSummary.from_json(value)
-            for name, value in streams.items()
-            if name in ("train", "test")
-        },
+        streams=record("streams", StreamsResult),
         learning=record("learning", LearningResult),
         figures=stages.get("figures"),
         videos=stages.get("videos", {}).get("videos"),

@@ -315,6 +315,30 @@ class StreamSummary:
 
 
 @dataclasses.dataclass(frozen=True)
+class StreamsResult:
+    """The streams stage: the training and test streams, and the run folder they were copied
+    from (``--reuse-from``), if any."""
+
+    train: StreamSummary
+    test: StreamSummary
+    reused_from: str | None = None
+
+    def to_json(self) -> dict:
+        out = {"train": self.train.to_json(), "test": self.test.to_json()}
+        if self.reused_from is not None:
+            out["reused_from"] = self.reused_from
+        return out
+
+    @classmethod
+    def from_json(cls, data: dict) -> StreamsResult:
+        return cls(
+            StreamSummary.from_json(data["train"]),
+            StreamSummary.from_json(data["test"]),
+            data.get("reused_from"),
+        )
+
+
+@dataclasses.dataclass(frozen=True)
 class NetworkSummary:
     """A trained network: its file (relative to the run folder), the samples it learned from and its
     hyper-parameters (``get_params()``, tuples as lists)."""
@@ -337,11 +361,14 @@ class LearningResult:
 
     paper: NetworkSummary
     hierarchical: NetworkSummary | None = None
+    reused_from: str | None = None
 
     def to_json(self) -> dict:
         out = self.paper.to_json()
         if self.hierarchical is not None:
             out["hierarchical"] = self.hierarchical.to_json()
+        if self.reused_from is not None:
+            out["reused_from"] = self.reused_from
         return out
 
     @classmethod
@@ -350,6 +377,7 @@ class LearningResult:
         return cls(
             NetworkSummary.from_json(data),
             None if hierarchical is None else NetworkSummary.from_json(hierarchical),
+            data.get("reused_from"),
         )
 
 
@@ -362,7 +390,7 @@ class Results:
     seed: int
     recognition: RecognitionResult | None
     performance: PerformanceResult | None
-    streams: dict | None
+    streams: StreamsResult | None
     learning: LearningResult | None
     figures: dict | None
     videos: list | None
@@ -420,9 +448,7 @@ class Results:
             "recognition": recognition,
             "performance": performance,
             "fig4": fig4,
-            "streams": None
-            if self.streams is None
-            else {name: s.to_json() for name, s in self.streams.items()},
+            "streams": None if self.streams is None else self.streams.to_json(),
             "learning": None if self.learning is None else self.learning.to_json(),
             "figures": self.figures,
             "videos": self.videos,

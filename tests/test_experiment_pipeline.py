@@ -434,3 +434,29 @@ def test_cli_refuses_a_folder_with_other_settings(run_folder, capsys):
     err = capsys.readouterr().err
     assert "trials" in err and "--fresh" in err
     assert (folder / "state.json").read_text() == before
+
+
+# ------------------------------------------------------------------------------ reuse
+def test_reuse_from_takes_the_networks_for_a_camera_run(run_folder, tmp_path):
+    """``reuse_from`` copies the finished run's streams and networks (no learning again) into a
+    run watching through the overhead camera; its recognition has the camera rows and the same
+    truth table. A source with a changed network is refused by name."""
+    folder, reference = run_folder
+    config = tiny_config(**{"vision.mode": "overhead", "videos.enabled": False})
+    results = reproduce.run(config, tmp_path / "overhead", reuse_from=folder).to_json()
+    assert results["learning"]["reused_from"] == str(folder)
+    assert results["recognition"]["confusion"] == reference["recognition"]["confusion"]
+    camera = results["recognition"]["vision"]
+    assert camera["steps"] == TINY["vision.test_steps"] and camera["seen_fraction"] > 0.5
+    assert camera["teacher_position_error_cm"]["median"] < 5.0
+    assert (
+        "Recognition through the overhead camera"
+        in (tmp_path / "overhead" / "results.md").read_text()
+    )
+    damaged = tmp_path / "damaged"
+    shutil.copytree(folder, damaged)
+    (damaged / "network.npz").write_bytes((damaged / "network.npz").read_bytes()[:-9])
+    with pytest.raises(ValueError, match="network.npz is missing or changed"):
+        reproduce.run(config, tmp_path / "other", reuse_from=damaged)
+    with pytest.raises(ValueError, match=r"other seed"):
+        reproduce.run(config.replace({"seed": 3}), tmp_path / "third", reuse_from=folder)
