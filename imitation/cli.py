@@ -122,6 +122,32 @@ def _cmd_reproduce(args) -> int:
     return 0 if results else 1
 
 
+def _cmd_sweep(args) -> int:
+    from imitation import sweep
+
+    if not args.run or args.run[0] != "reproduce":
+        raise ValueError(
+            "say what each cell runs: peoplebot sweep --out DIR ... reproduce [its options]"
+        )
+    run_args = build_parser().parse_args(["reproduce", *args.run[1:]])
+    for option in ("out", "fresh", "reuse_from"):
+        if getattr(run_args, option) not in (None, False):
+            raise ValueError(
+                f"--{option.replace('_', '-')} is the sweep's to choose (each cell is "
+                f"DIR/cells/<name>/); leave it out of the cells' options"
+            )
+    base = reproduce_config(run_args)
+    seeds = sweep.parse_seeds(args.seeds) if args.seeds else (base.seed,)
+    settings = [sweep.parse_setting(text) for text in args.set]
+    summary = sweep.sweep(
+        base, seeds, settings, args.out, address=args.address, workers=args.workers
+    )
+    out = pathlib.Path(args.out)
+    print((out / "sweep.md").read_text())
+    print(f"sweep folder: {out} (sweep.json, sweep.md, figures/, cells/)")
+    return 1 if summary["counts"]["failed"] else 0
+
+
 def _cmd_figures(args) -> int:
     from associator import figures, persistence
     from associator.network import Associator
@@ -280,6 +306,35 @@ def build_parser() -> argparse.ArgumentParser:
         "source, steps and network): compare vision modes on one network",
     )
     rep.set_defaults(func=_cmd_reproduce)
+
+    sweep = sub.add_parser(
+        "sweep",
+        help="a grid of reproduce runs over seeds and settings, on Ray (local or a cluster)",
+        **defaults,
+    )
+    sweep.add_argument("--out", type=pathlib.Path, required=True, help="the sweep's folder")
+    sweep.add_argument(
+        "--seeds", default=None, help="seeds: a range 0-4 or a list 0,3,7 (default: the run's seed)"
+    )
+    sweep.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=V1,V2",
+        help="a config key and its values (e.g. network.pose_weight=0.01,0.03); repeatable",
+    )
+    sweep.add_argument(
+        "--address",
+        default=None,
+        help="a Ray cluster to join (else RAY_ADDRESS, else a local Ray on this machine)",
+    )
+    sweep.add_argument(
+        "--workers", type=_positive_int, default=None, help="cells at once on a local Ray (cores)"
+    )
+    sweep.add_argument(
+        "run", nargs=argparse.REMAINDER, help="reproduce [its options]: what each cell runs"
+    )
+    sweep.set_defaults(func=_cmd_sweep)
 
     fig = sub.add_parser(
         "figures", help="the paper's Figs. 3, 5 and 6 from a saved network", **defaults

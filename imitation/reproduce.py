@@ -44,25 +44,35 @@ from imitation.results import (
     package_versions,
 )
 from imitation.runstate import RunState
-from imitation.streams import TeacherStream, generate_resumable, stream_provenance
+from imitation.streams import (
+    TeacherStream,
+    cached_stream,
+    generate_resumable,
+    stream_provenance,
+)
 from peoplebot_sim import directives
 from perception.wallframe import ArenaGeometry
 
 STAGES = ("streams", "learning", "recognition", "performance", "figures", "videos")
 
 
-def _stream_worker(job, config: RunConfig, folder: str, progress_file: str) -> str:
+def _stream_worker(job, config: RunConfig, folder: str, cache, progress_file: str) -> str:
     import peoplebot_sim  # noqa: F401  (headless rendering set before mujoco loads)
 
     seed, n_steps, name = job
-    path = generate_resumable(
-        seed, n_steps, folder, name, config=config.task_config(), progress_file=progress_file
-    )
-    return str(path)
+    task = config.task_config()
+    if cache is None:
+        path = generate_resumable(
+            seed, n_steps, folder, name, config=task, progress_file=progress_file
+        )
+        return str(path)
+    shared = cached_stream(seed, n_steps, cache, task, progress_file)
+    return str(storage.link(shared, pathlib.Path(folder) / f"{name}.npz"))
 
 
-def stage_streams(config: RunConfig, folder: pathlib.Path) -> dict:
-    """Generates the training and test streams; returns their summaries by name."""
+def stage_streams(config: RunConfig, folder: pathlib.Path, cache=None) -> dict:
+    """Generates the training and test streams (or takes them from ``cache``, a folder shared by
+    runs, where they are generated once); returns their summaries by name."""
     streams = folder / "streams"
     jobs = [
         (config.seed * 2 + 1, config.learning.train_steps, "train"),
@@ -72,7 +82,7 @@ def stage_streams(config: RunConfig, folder: pathlib.Path) -> dict:
     paths = run_parallel(
         _stream_worker,
         jobs,
-        (config, str(streams)),
+        (config, str(streams), None if cache is None else str(cache)),
         min(config.workers, 2),
         streams,
         "teacher streams (train + test)",
@@ -251,13 +261,16 @@ def reuse_learning(state: RunState, source) -> None:
         state.finish(stage, {**other["stages"][stage], "reused_from": str(source)}, copied[stage])
 
 
-def run(config: RunConfig, out_dir, fresh: bool = False, reuse_from=None) -> Results:
+def run(
+    config: RunConfig, out_dir, fresh: bool = False, reuse_from=None, stream_cache=None
+) -> Results:
     """Runs (or resumes) the whole experiment in ``out_dir``; returns the results.
 
     A finished stage is kept only while every file it wrote is unchanged; otherwise it and the
     stages after it run again. ``fresh`` removes everything an earlier run wrote first.
     ``reuse_from``: a finished run folder whose streams and network to take (see
-    ``reuse_learning``).
+    ``reuse_learning``). ``stream_cache``: a folder where runs share their teacher streams (one
+    generation per seed, steps and world; ``peoplebot sweep`` passes one).
     """
     folder = pathlib.Path(out_dir)
     state = RunState(folder, config.to_dict(), fresh=fresh)
@@ -274,7 +287,7 @@ def run(config: RunConfig, out_dir, fresh: bool = False, reuse_from=None) -> Res
             if stage == "videos" and not config.videos.enabled:
                 continue
             start = time.perf_counter()
-            result, files = _run_stage(stage, config, folder, encoder)
+            result, files = _run_stage(stage, config, folder, encoder, stream_cache)
             state.finish(stage, result, files, time.perf_counter() - start)
         results = collect(config, state)
         storage.write_json(folder / "results.json", results.to_json())
@@ -284,10 +297,10 @@ def run(config: RunConfig, out_dir, fresh: bool = False, reuse_from=None) -> Res
         state.close()
 
 
-def _run_stage(stage: str, config: RunConfig, folder: pathlib.Path, encoder) -> tuple:
+def _run_stage(stage: str, config: RunConfig, folder: pathlib.Path, encoder, cache) -> tuple:
     """Runs one stage; returns its result (JSON values) and the files it wrote."""
     if stage == "streams":
-        summaries = stage_streams(config, folder)
+        summaries = stage_streams(config, folder, cache)
         return (
             {k: v.to_json() for k, v in summaries.items()},
             [folder / v.path for v in summaries.values()],

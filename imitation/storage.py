@@ -14,6 +14,7 @@ import io
 import json
 import os
 import pathlib
+import shutil
 import signal
 
 import numpy as np
@@ -82,6 +83,19 @@ def commit(tmp, path) -> pathlib.Path:
     _fsync_folder(path.parent)
     _event()
     return path
+
+
+def link(source, path) -> pathlib.Path:
+    """Puts the (never modified in place) file ``source`` at ``path`` too: a hard link where the
+    file system allows, else a copy; crash-safe either way."""
+    source, path = pathlib.Path(source), pathlib.Path(path)
+    tmp = temporary_name(path)
+    tmp.unlink(missing_ok=True)
+    try:
+        os.link(source, tmp)
+    except OSError:
+        shutil.copyfile(source, tmp)
+    return commit(tmp, path)
 
 
 def temporary_name(path) -> pathlib.Path:

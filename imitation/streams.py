@@ -13,6 +13,8 @@ teacher's physics is unchanged.
 from __future__ import annotations
 
 import dataclasses
+import fcntl
+import hashlib
 import json
 import pathlib
 import zipfile
@@ -312,6 +314,27 @@ def generate_resumable(
         p.unlink()
     state_path.unlink(missing_ok=True)
     return final
+
+
+def cached_stream(
+    seed: int, n_steps: int, cache, config: TaskConfig | None = None, progress_file=None
+) -> pathlib.Path:
+    """Returns the stream of ``seed`` and ``n_steps`` in the world ``config`` from the shared folder
+    ``cache``, generating it there first if no run has (one process at a time per stream: the
+    others wait for it, then take it)."""
+    config = config or TaskConfig()
+    cache = pathlib.Path(cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    key = json.dumps(
+        {"seed": int(seed), "steps": int(n_steps), "world": _world_settings(config)},
+        sort_keys=True,
+    )
+    name = f"stream-{hashlib.sha256(key.encode()).hexdigest()[:16]}"
+    with open(cache / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes, or the process ends
+        return generate_resumable(
+            seed, n_steps, cache, name, config=config, progress_file=progress_file
+        )
 
 
 def _world_settings(config: TaskConfig) -> dict:
