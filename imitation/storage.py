@@ -39,13 +39,7 @@ def write_bytes(path, data: bytes) -> pathlib.Path:
     tmp = path.with_name(f".{path.name}.tmp")
     with open(tmp, "wb") as handle:
         handle.write(data)
-        handle.flush()
-        os.fsync(handle.fileno())
-    _event()
-    os.replace(tmp, path)
-    _fsync_folder(path.parent)
-    _event()
-    return path
+    return commit(tmp, path)
 
 
 def write_text(path, text: str) -> pathlib.Path:
@@ -73,8 +67,8 @@ def save_npy(path, array) -> pathlib.Path:
 
 
 def commit(tmp, path) -> pathlib.Path:
-    """Makes a file written by another library at ``tmp`` (e.g. a video) durable and renames it
-    over ``path``."""
+    """Makes the file written at ``tmp`` (by us, or by another library: a video, a figure) durable
+    and renames it over ``path``, then makes the rename durable."""
     tmp, path = pathlib.Path(tmp), pathlib.Path(path)
     with open(tmp, "rb+") as handle:
         os.fsync(handle.fileno())

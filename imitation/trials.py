@@ -199,17 +199,7 @@ def fig4_traces(config: RunConfig, folder: pathlib.Path) -> dict:
         calibration = Calibration(env.physics, config.vision.width, config.vision.height)
     traces, out = {}, {}
     for word in ("go", "pick", "lift"):
-        agent = make_agent(config, "student", word, env, model, calibration)
-        result = performance.run_trial(
-            env,
-            agent,
-            word,
-            performance.FIG4_START,
-            "top",
-            seconds=config.performance.trial_seconds,
-            config=config.performance.success,
-            stop_on_success=False,
-        )
+        result = _from_fig4_start(config, env, model, calibration, word)
         traces[word] = result.trace
         traces[f"{word}_directives"] = np.asarray([d or "" for d in result.directives])
         out[word] = Fig4Trace(
@@ -218,6 +208,23 @@ def fig4_traces(config: RunConfig, folder: pathlib.Path) -> dict:
     env.close()
     storage.save_npz(folder / "fig4_traces.npz", **traces)
     return out
+
+
+def _from_fig4_start(config: RunConfig, env, model, calibration, word: str, frame_callback=None):
+    """Runs the student told ``word`` from the paper's Fig. 4 start for a whole trial (no early
+    stop); returns the trial."""
+    agent = make_agent(config, "student", word, env, model, calibration)
+    return performance.run_trial(
+        env,
+        agent,
+        word,
+        performance.FIG4_START,
+        "top",
+        seconds=config.performance.trial_seconds,
+        config=config.performance.success,
+        stop_on_success=False,
+        frame_callback=frame_callback,
+    )
 
 
 class _VideoWriter:
@@ -267,22 +274,11 @@ def _video_worker(
     paths, frames = [], 0
     width, height = config.videos.width, config.videos.height
     for word in words:
-        agent = make_agent(config, "student", word, env, model, calibration)
         path = pathlib.Path(folder) / f"student_{word}.mp4"
         video = _VideoWriter(env, path, word, width, height, progress_file, frames)
         finished = False
         try:
-            performance.run_trial(
-                env,
-                agent,
-                word,
-                performance.FIG4_START,
-                "top",
-                seconds=config.performance.trial_seconds,
-                config=config.performance.success,
-                stop_on_success=False,
-                frame_callback=video,
-            )
+            _from_fig4_start(config, env, model, calibration, word, video)
             finished = True
         finally:
             video.close(keep=finished)

@@ -22,7 +22,7 @@ import numpy as np
 from perception.camera import PinholeCamera
 from perception.layout import SIDE_MARKER_HEIGHT_M
 from perception.pose import check_planar_pose, robot_to_world
-from perception.wallframe import wrap_degrees
+from perception.wallframe import check_finite, wrap_degrees
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,21 +63,10 @@ class HeadMount:
     position_m: tuple[float, float, float] = (0.19, 0.0, 1.20)
 
 
-def _check_angles(**angles) -> None:
-    """Raises ValueError naming the first of ``angles`` (name=number) that is not finite."""
-    for name, value in angles.items():
-        try:
-            finite = math.isfinite(value)
-        except TypeError:
-            finite = False
-        if not finite:
-            raise ValueError(f"{name} must be a finite number, got {value!r}")
-
-
 def head_camera_rotation(yaw_rad: float, pan_deg: float, tilt_deg: float) -> np.ndarray:
     """Returns ``rotation_world_from_camera`` (OpenCV axes) of the head on a robot with heading
     ``yaw_rad``."""
-    _check_angles(yaw_rad=yaw_rad, pan_deg=pan_deg, tilt_deg=tilt_deg)
+    check_finite(yaw_rad=yaw_rad, pan_deg=pan_deg, tilt_deg=tilt_deg)
     azimuth = yaw_rad + math.radians(pan_deg)
     elevation = math.radians(tilt_deg)
     ca, sa, ce, se = math.cos(azimuth), math.sin(azimuth), math.cos(elevation), math.sin(elevation)
@@ -103,7 +92,7 @@ def head_camera(
     """Returns ``intrinsics`` posed as the head camera of a robot at ``observer_pose`` (x_m, y_m,
     yaw_rad)."""
     check_planar_pose(observer_pose, "observer_pose")
-    _check_angles(pan_deg=pan_deg, tilt_deg=tilt_deg)
+    check_finite(pan_deg=pan_deg, tilt_deg=tilt_deg)
     return intrinsics.with_pose(
         head_camera_rotation(observer_pose[2], pan_deg, tilt_deg),
         head_position_world(observer_pose, mount),
@@ -182,7 +171,7 @@ class PanTiltController:
             raise ValueError(
                 f"search_tilt_deg must be within the tilt limits, got {search_tilt_deg!r}"
             )
-        _check_angles(
+        check_finite(
             target_height_m=target_height_m,
             initial_pan_deg=initial_pan_deg,
             initial_tilt_deg=initial_tilt_deg,

@@ -85,14 +85,14 @@ class ArenaGeometry:
     def clear_of_table(self, x_world: float, y_world: float, margin_m: float) -> bool:
         """Returns whether the world point (metres) lies at least ``margin_m`` outside the table's
         footprint along either axis (a box test, as for a robot's centre with that clearance)."""
-        _check_finite(x_world=x_world, y_world=y_world, margin_m=margin_m)
+        check_finite(x_world=x_world, y_world=y_world, margin_m=margin_m)
         x0, x1, y0, _ = self.table_box
         return not (x0 - margin_m < x_world < x1 + margin_m and y_world > y0 - margin_m)
 
     def table_gap_m(self, x_world: float, y_world: float) -> float:
         """Returns the distance in metres from the world point to the table's footprint, 0 on or
         inside it (a disc of that radius around the point just touches the table)."""
-        _check_finite(x_world=x_world, y_world=y_world)
+        check_finite(x_world=x_world, y_world=y_world)
         x0, x1, y0, y1 = self.table_box
         return math.hypot(
             max(x0 - x_world, 0.0, x_world - x1), max(y0 - y_world, 0.0, y_world - y1)
@@ -113,7 +113,7 @@ class WallPose:
         return np.array([self.x_m, self.y_m, self.phi_deg], dtype=float)
 
 
-def _check_finite(**values) -> None:
+def check_finite(**values) -> None:
     """Raises ValueError naming the first of ``values`` (name=number) that is not a finite number."""
     for name, value in values.items():
         try:
@@ -131,7 +131,7 @@ def _check_wall(wall: str) -> None:
 
 def nearest_wall(x_world: float, y_world: float) -> str:
     """Returns the name of the wall whose diagonal area holds the world point (metres)."""
-    _check_finite(x_world=x_world, y_world=y_world)
+    check_finite(x_world=x_world, y_world=y_world)
     best, best_score = WALL_NAMES[0], -math.inf
     for wall in WALL_NAMES:
         nx, ny = _NORMALS[wall]
@@ -200,7 +200,7 @@ def wall_to_world(
 ) -> tuple[float, float, float]:
     """Returns ``(x_world, y_world, yaw_rad)`` for a wall-frame pose (the inverse of ``world_to_wall``)."""
     _check_wall(pose.wall)
-    _check_finite(**{f"pose.{name}": getattr(pose, name) for name in ("x_m", "y_m", "phi_deg")})
+    check_finite(**{f"pose.{name}": getattr(pose, name) for name in ("x_m", "y_m", "phi_deg")})
     nx, ny = _NORMALS[pose.wall]
     tx, ty = ny, -nx
     depth = arena.half_side_m - pose.x_m
