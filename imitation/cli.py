@@ -148,6 +148,24 @@ def _cmd_sweep(args) -> int:
     return 1 if summary["counts"]["failed"] else 0
 
 
+def _cmd_watch(args) -> int:
+    from imitation import watch
+
+    summary = watch.run(
+        args.video,
+        args.camera_info,
+        args.arena,
+        args.out,
+        network=args.network,
+        frame_seconds=args.frame_seconds,
+    )
+    print(
+        json.dumps({k: summary[k] for k in ("frames", "frame_seconds", "seen_fraction")}, indent=2)
+    )
+    print(f"written: {args.out} ({', '.join(summary['files'])})")
+    return 0
+
+
 def _cmd_figures(args) -> int:
     from associator import figures, persistence
     from associator.network import Associator
@@ -335,6 +353,39 @@ def build_parser() -> argparse.ArgumentParser:
         "run", nargs=argparse.REMAINDER, help="reproduce [its options]: what each cell runs"
     )
     sweep.set_defaults(func=_cmd_sweep)
+
+    watch = sub.add_parser(
+        "watch",
+        help="the student's perception and a trained network over a recorded video",
+        **defaults,
+    )
+    watch.add_argument(
+        "video", type=pathlib.Path, help="an mp4 (or any video) or a folder of images"
+    )
+    watch.add_argument(
+        "--camera-info", type=pathlib.Path, required=True, help="the camera's ROS camera_info YAML"
+    )
+    watch.add_argument(
+        "--arena",
+        type=pathlib.Path,
+        required=True,
+        help="the arena file: walls, table and the fixed camera's pose (models/arena/arena.toml "
+        "is the simulated arena's, without a camera)",
+    )
+    watch.add_argument(
+        "--network",
+        type=pathlib.Path,
+        default=None,
+        help="a run folder (its network.npz and hierarchical.npz) or one network .npz",
+    )
+    watch.add_argument(
+        "--frame-seconds",
+        type=_positive_float,
+        default=None,
+        help="seconds between frames (default: the video's 1/fps; 0.1 for images)",
+    )
+    watch.add_argument("--out", type=pathlib.Path, required=True, help="folder for what it writes")
+    watch.set_defaults(func=_cmd_watch)
 
     fig = sub.add_parser(
         "figures", help="the paper's Figs. 3, 5 and 6 from a saved network", **defaults

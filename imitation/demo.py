@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import pathlib
@@ -12,9 +13,11 @@ import numpy as np
 from tqdm import tqdm
 
 from imitation.overlay import annotate
-from peoplebot_sim import directives
+from peoplebot_sim import cameras, directives
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import load
+from perception import camerainfo
+from perception.arenafile import write_arena
 
 #: The longest demo, simulated seconds.
 MAX_SECONDS = 86_400.0
@@ -90,21 +93,29 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
             )
             writer = imageio.get_writer(
                 str(out_path),
-                fps=config.speedup / control_dt,
+                # An overhead recording plays in real time, as a camera records it.
+                fps=(1.0 if config.camera == "overhead" else config.speedup) / control_dt,
                 codec="libx264",
                 quality=7,
                 macro_block_size=8,
                 ffmpeg_log_level="error",
             )
         camera = "showcase" if config.camera == "showcase" else "overhead"
+        recording = config.camera == "overhead"  # frames as the camera sees them, for watch
+        truth = []
         steps = tqdm(range(n_steps), desc="demo", unit="step", disable=not progress)
-        for _ in steps:
+        for i in steps:
             timestep = env.step(action)
             word = directives.WORDS[int(timestep.observation["teacher_word"])]
             directive = directives.DIRECTIVES[int(timestep.observation["teacher_directive"])]
             counts[directives.word_index(word)] += 1
+            if recording:
+                truth.append(_truth_row(i, i * control_dt, timestep.observation, word, directive))
             if writer is not None:
                 frame = renderer.render(camera)
+                if recording:
+                    writer.append_data(frame)
+                    continue
                 caption = (
                     f"t = {env.physics.data.time:6.1f} s   cycles "
                     f"{task.teacher_controller.cycles_completed}"
@@ -133,6 +144,48 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
         "wall_clock_seconds": time.perf_counter() - start,
         "config": dataclasses.asdict(config),
     }
+    if config.camera == "overhead":
+        summary["recording"] = _write_recording(env, config, out_path, truth, control_dt)
     out_path.with_suffix(".json").write_text(json.dumps(summary, indent=2))
     env.close()
     return summary
+
+
+#: The columns of a recording's true poses (one row per frame).
+TRUTH_COLUMNS = (
+    "frame",
+    "time_s",
+    "teacher_x_m",
+    "teacher_y_m",
+    "teacher_yaw_rad",
+    "student_x_m",
+    "student_y_m",
+    "student_yaw_rad",
+    "word",
+    "directive",
+)
+
+
+def _truth_row(frame: int, time_s: float, observation, word: str, directive: str) -> list:
+    teacher, student = observation["teacher_pose"], observation["student_pose"]
+    return [frame, f"{time_s:.3f}", *(f"{v:.5f}" for v in (*teacher, *student)), word, directive]
+
+
+def _write_recording(env, config: DemoConfig, video_path: pathlib.Path, truth, dt) -> dict:
+    """Beside an overhead recording, writes what a real one would come with, so that ``peoplebot
+    watch`` can take it: the camera's ``camera_info`` YAML, the arena file with the camera's pose,
+    and the true poses per frame (``<name>.truth.csv``); returns their paths."""
+    camera = cameras.camera_model(env.physics, "overhead", config.width, config.height)
+    stem = video_path.with_suffix("")
+    paths = {
+        "camera_info": stem.with_name(f"{stem.name}.camera_info.yaml"),
+        "arena": stem.with_name(f"{stem.name}.arena.toml"),
+        "truth": stem.with_name(f"{stem.name}.truth.csv"),
+    }
+    camerainfo.write(paths["camera_info"], camera, camera_name="overhead")
+    write_arena(paths["arena"], env.task.geometry, camera)
+    with open(paths["truth"], "w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(TRUTH_COLUMNS)
+        writer.writerows(truth)
+    return {**{k: str(v) for k, v in paths.items()}, "frame_seconds": dt}

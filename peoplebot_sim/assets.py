@@ -23,6 +23,8 @@ PEOPLEBOT_XML = MODELS_DIR / "peoplebot" / "peoplebot.xml"
 ARENA_XML = MODELS_DIR / "arena" / "arena.xml"
 TABLE_XML = MODELS_DIR / "arena" / "table.xml"
 OBJECT_XML = MODELS_DIR / "arena" / "object.xml"
+#: The simulated arena as an arena file (``perception.arenafile``), for ``peoplebot watch``.
+ARENA_TOML = MODELS_DIR / "arena" / "arena.toml"
 
 #: Texture pixels per marker cell (a 4x4 marker with its border has 6 cells a side).
 _PIXELS_PER_CELL = 20
