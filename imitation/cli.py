@@ -46,6 +46,7 @@ def _cmd_demo(args) -> int:
         speedup=args.speedup,
         video=not args.no_video,
         shadows=not args.no_shadows,
+        mcap=args.mcap,
     )
     summary = run_demo(config, args.out, progress=not args.quiet)
     keys = (
@@ -56,6 +57,7 @@ def _cmd_demo(args) -> int:
         "collisions",
         "watchdog_recoveries",
         "video",
+        "mcap",
         "wall_clock_seconds",
     )
     print(json.dumps({k: summary[k] for k in keys}, indent=2))
@@ -106,6 +108,8 @@ def reproduce_config(args):
         changes["videos.enabled"] = False
     if args.paper_only:
         changes["hierarchical.enabled"] = False
+    if args.mcap:
+        changes["videos.mcap"] = True
     return config.replace(changes)
 
 
@@ -158,6 +162,7 @@ def _cmd_watch(args) -> int:
         args.out,
         network=args.network,
         frame_seconds=args.frame_seconds,
+        mcap=args.mcap,
     )
     print(
         json.dumps({k: summary[k] for k in ("frames", "frame_seconds", "seen_fraction")}, indent=2)
@@ -221,6 +226,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--no-video", action="store_true", help="write the JSON summary only")
     demo.add_argument("--no-shadows", action="store_true", help="render faster, without shadows")
+    demo.add_argument(
+        "--mcap", action="store_true", help="also write the episode as a ROS 2 MCAP log"
+    )
     demo.add_argument("--quiet", action="store_true", help="no progress bar")
     demo.set_defaults(func=_cmd_demo)
 
@@ -300,6 +308,11 @@ def build_parser() -> argparse.ArgumentParser:
         "strongest directive",
     )
     rep.add_argument("--no-videos", action="store_true", help="skip the student videos")
+    rep.add_argument(
+        "--mcap",
+        action="store_true",
+        help="with each student video, a ROS 2 MCAP log of the episode (student_<word>.mcap)",
+    )
     rep.add_argument(
         "--paper-only",
         action="store_true",
@@ -383,6 +396,9 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_float,
         default=None,
         help="seconds between frames (default: the video's 1/fps; 0.1 for images)",
+    )
+    watch.add_argument(
+        "--mcap", action="store_true", help="also write watched.mcap, a ROS 2 log of what it saw"
     )
     watch.add_argument("--out", type=pathlib.Path, required=True, help="folder for what it writes")
     watch.set_defaults(func=_cmd_watch)

@@ -213,11 +213,13 @@ class PerformanceConfig:
 
 @dataclasses.dataclass(frozen=True)
 class VideoConfig:
-    """The videos of the student performing each word: whether to render them, and their size."""
+    """The videos of the student performing each word: whether to render them, their size, and
+    whether to log each episode as a ROS 2 MCAP file too."""
 
     enabled: bool = True
     width: int = 480
     height: int = 360
+    mcap: bool = False
 
     def __post_init__(self):
         _check_pixels("videos", self.width, self.height)

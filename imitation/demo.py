@@ -13,6 +13,7 @@ import numpy as np
 from tqdm import tqdm
 
 from imitation.overlay import annotate
+from imitation.rosbag import EpisodeRecorder
 from peoplebot_sim import cameras, directives
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import load
@@ -35,6 +36,8 @@ class DemoConfig:
       speedup: playback speed; the video runs at ``speedup / control_timestep`` frames/s.
       video: write the mp4 (False: the summary alone, much faster).
       shadows: render shadows in the video.
+      mcap: also write the episode as a ROS 2 MCAP log (``<name>.mcap``: the overhead camera's
+        frames and camera_info, the robots' poses, the teacher's word and directive).
     """
 
     seconds: float = 180.0
@@ -45,6 +48,7 @@ class DemoConfig:
     speedup: float = 2.0
     video: bool = True
     shadows: bool = True
+    mcap: bool = False
 
     def __post_init__(self):
         if not (np.isfinite(self.seconds) and 0.1 <= self.seconds <= MAX_SECONDS):
@@ -85,7 +89,8 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
     action = np.zeros(env.action_spec().shape)
     counts = np.zeros(len(directives.WORDS), int)
     start = time.perf_counter()
-    renderer = writer = None
+    renderer = writer = bag = bag_renderer = None
+    finished = False
     try:
         if config.video:
             renderer = FrameRenderer(
@@ -100,6 +105,10 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
                 macro_block_size=8,
                 ffmpeg_log_level="error",
             )
+        if config.mcap:
+            bag = EpisodeRecorder(out_path.with_suffix(".mcap"))
+            bag_renderer = FrameRenderer(env.physics, 320, 240)
+            overhead = cameras.camera_model(env.physics, "overhead", 320, 240)
         camera = "showcase" if config.camera == "showcase" else "overhead"
         recording = config.camera == "overhead"  # frames as the camera sees them, for watch
         truth = []
@@ -111,6 +120,19 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
             counts[directives.word_index(word)] += 1
             if recording:
                 truth.append(_truth_row(i, i * control_dt, timestep.observation, word, directive))
+            if bag is not None:
+                observation = timestep.observation
+                bag.record(
+                    float(env.physics.data.time),
+                    cmd_vel=env.physics.named.data.ctrl[["student/forward", "student/turn"]],
+                    student_pose=observation["student_pose"],
+                    teacher_pose=observation["teacher_pose"],
+                    image=bag_renderer.render("overhead"),
+                    camera_matrix=overhead.matrix,
+                    camera_pose=(overhead.rotation_world_from_camera, overhead.position_world),
+                    word=word,
+                    directive=directive,
+                )
             if writer is not None:
                 frame = renderer.render(camera)
                 if recording:
@@ -121,11 +143,15 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
                     f"{task.teacher_controller.cycles_completed}"
                 )
                 writer.append_data(annotate(frame, word, directive, caption))
+        finished = True
     finally:
         if writer is not None:
             writer.close()
         if renderer is not None:
             renderer.close()
+        if bag is not None:
+            bag.close(keep=finished)
+            bag_renderer.close()
     teacher = task.teacher_controller
     simulated = float(env.physics.data.time)
     summary = {
@@ -141,6 +167,7 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
         "watchdog_events": [dataclasses.asdict(e) for e in teacher.events],
         "seed": config.seed,
         "video": str(out_path) if config.video else None,
+        "mcap": str(out_path.with_suffix(".mcap")) if config.mcap else None,
         "wall_clock_seconds": time.perf_counter() - start,
         "config": dataclasses.asdict(config),
     }

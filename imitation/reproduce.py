@@ -321,7 +321,7 @@ def _run_stage(stage: str, config: RunConfig, folder: pathlib.Path, encoder, cac
         paths = report.figures(config, folder, model, encoder)
         return paths, [folder / p for p in paths.values()]
     videos = trials.stage_videos(config, folder)
-    return videos, [folder / name for name in videos["videos"]]
+    return videos, [folder / name for name in (*videos["videos"], *videos.get("mcap", ()))]
 
 
 def _drop_changed_stages(state: RunState) -> None:

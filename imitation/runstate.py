@@ -32,6 +32,9 @@ RUN_FILES = (
     "student_go.mp4",
     "student_pick.mp4",
     "student_lift.mp4",
+    "student_go.mcap",
+    "student_pick.mcap",
+    "student_lift.mcap",
 )
 RUN_FOLDERS = ("streams", "figures")
 #: Settings that change how a run is carried out but not its results: a folder resumes with others.

@@ -7,6 +7,7 @@ import json
 import pathlib
 
 import imageio.v2 as imageio
+import mujoco
 import numpy as np
 
 from associator import encoding, persistence
@@ -16,6 +17,8 @@ from imitation.observers import Calibration, StudentVision
 from imitation.overlay import annotate
 from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
+from imitation.rosbag import EpisodeRecorder
+from peoplebot_sim.cameras import camera_model
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import load
 
@@ -231,9 +234,19 @@ class _VideoWriter:
     """Writes one annotated showcase frame per control step of a trial."""
 
     def __init__(
-        self, env, path, word: str, width: int, height: int, progress_file: str, frames_before: int
+        self,
+        env,
+        path,
+        word: str,
+        width: int,
+        height: int,
+        progress_file: str,
+        frames_before: int,
+        mcap: bool = False,
     ):
         self.path, self.tmp = pathlib.Path(path), storage.temporary_name(path)
+        self.bag = EpisodeRecorder(self.path.with_suffix(".mcap")) if mcap else None
+        self.camera = camera_model(env.physics, "showcase", width, height)
         self.word, self.progress_file, self.frames = word, progress_file, frames_before
         self.steps = 0
         self.renderer = FrameRenderer(env.physics, width, height, antialias=True)
@@ -251,15 +264,45 @@ class _VideoWriter:
         time_s = self.steps * env.task.control_timestep
         caption = f"student told '{self.word}'   t = {time_s:4.1f} s"
         image = self.renderer.render("showcase")
+        if self.bag is not None:
+            self._log(env, agent, time_s, image)
         self.writer.append_data(annotate(image, self.word, agent.directive, caption, agent.motor))
         self.frames += 1
         if self.frames % 20 == 0:
             pathlib.Path(self.progress_file).write_text(str(self.frames))
 
+    def _log(self, env, agent, time_s: float, image) -> None:
+        """Records the step in the episode's MCAP log: the wheel command, the student's true and
+        estimated pose and velocity, the camera's frame, the word and directive."""
+        physics, student = env.physics, env.task.student
+        velocity = np.zeros(6)  # body frame: angular (x, y, z), then linear (x, y, z)
+        mujoco.mj_objectVelocity(
+            physics.model.ptr,
+            physics.data.ptr,
+            mujoco.mjtObj.mjOBJ_BODY,
+            student.body_id(physics),
+            velocity,
+            1,
+        )
+        self.bag.record(
+            time_s,
+            cmd_vel=physics.named.data.ctrl[["student/forward", "student/turn"]],
+            student_pose=student.planar_pose(physics),
+            student_velocity=(velocity[3], velocity[2]),
+            image=image,
+            camera_matrix=self.camera.matrix,
+            camera_pose=(self.camera.rotation_world_from_camera, self.camera.position_world),
+            estimated_poses={"student": getattr(agent, "own_pose", None)},
+            word=self.word,
+            directive=agent.directive,
+        )
+
     def close(self, keep: bool = True) -> None:
         """Finishes the video; ``keep``: move it to its name (False: a failed trial's is dropped)."""
         self.writer.close()
         self.renderer.close()
+        if self.bag is not None:
+            self.bag.close(keep=keep)
         if keep:
             storage.commit(self.tmp, self.path)
         else:
@@ -275,7 +318,9 @@ def _video_worker(
     width, height = config.videos.width, config.videos.height
     for word in words:
         path = pathlib.Path(folder) / f"student_{word}.mp4"
-        video = _VideoWriter(env, path, word, width, height, progress_file, frames)
+        video = _VideoWriter(
+            env, path, word, width, height, progress_file, frames, mcap=config.videos.mcap
+        )
         finished = False
         try:
             _from_fig4_start(config, env, model, calibration, word, video)
@@ -305,4 +350,6 @@ def stage_videos(config: RunConfig, folder: pathlib.Path) -> dict:
         "videos",
         frames,
     )
-    return {"videos": sorted(p for chunk in results for p in chunk)}
+    videos = sorted(p for chunk in results for p in chunk)
+    logs = [str(pathlib.Path(v).with_suffix(".mcap")) for v in videos] if config.videos.mcap else []
+    return {"videos": videos, **({"mcap": logs} if logs else {})}

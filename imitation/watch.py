@@ -26,6 +26,7 @@ from imitation import storage
 from imitation.learning import inferred_directives
 from imitation.overlay import annotate
 from imitation.recognition import recognise_stream
+from imitation.rosbag import EpisodeRecorder
 from imitation.streams import TeacherStream
 from perception import camerainfo
 from perception.arenafile import ArenaSetup, read_arena
@@ -158,7 +159,7 @@ def run(
     out,
     network=None,
     frame_seconds: float | None = None,
-    progress: bool = True,
+    mcap: bool = False,
 ) -> dict:
     """Watches a recording (see the module notes); writes into ``out`` and returns the summary."""
     out = pathlib.Path(out)
@@ -176,6 +177,8 @@ def run(
     storage.write_text(out / "poses.csv", _poses_csv(watched, setup.arena))
     storage.write_text(out / "recognition.csv", _recognition_csv(watched, readouts))
     _write_video(out / "watched.mp4", frames, watched, readouts, camera, frame_seconds)
+    if mcap:
+        _write_log(out / "watched.mcap", frames, watched, readouts, camera)
     seen = {r: float(np.mean(np.all(np.isfinite(p), axis=1))) for r, p in watched.poses.items()}
     summary = {
         "video": str(video),
@@ -192,7 +195,8 @@ def run(
             }
             for label, words in readouts.items()
         },
-        "files": ["poses.csv", "recognition.csv", "watched.mp4", "summary.json"],
+        "files": ["poses.csv", "recognition.csv", "watched.mp4", "summary.json"]
+        + (["watched.mcap"] if mcap else []),
     }
     storage.write_json(out / "summary.json", summary)
     return summary
@@ -276,3 +280,25 @@ def _write_video(path, frames, watched, readouts, camera, frame_seconds) -> None
             caption = f"t = {watched.time_s[i]:5.1f} s"
             writer.append_data(annotate(image, word, directive, caption))
     storage.commit(tmp, path)
+
+
+def _write_log(path, frames, watched, readouts, camera) -> None:
+    """What the student saw, as a ROS 2 MCAP log: the frames with the camera's calibration and
+    pose, the robots' tracked poses, the inferred directive and the recognised word."""
+    label = next((k for k in ("hierarchical_over_time", "paper") if k in readouts), None)
+    with EpisodeRecorder(path) as bag:
+        for i, frame in enumerate(frames):
+            known = {
+                r: p[i] if np.all(np.isfinite(p[i])) else None for r, p in watched.poses.items()
+            }
+            bag.record(
+                float(watched.time_s[i]),
+                image=frame,
+                camera_matrix=camera.matrix,
+                camera_pose=(camera.rotation_world_from_camera, camera.position_world),
+                estimated_poses=known,
+                word=readouts[label][i] if label else None,
+                directive=encoding.DIRECTIVES[int(watched.directive[i])]
+                if known["teacher"] is not None
+                else None,
+            )

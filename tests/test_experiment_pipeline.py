@@ -37,6 +37,7 @@ TINY = {
     "performance.trials": 1,
     "performance.trial_seconds": 6.0,
     "workers": 2,
+    "videos.mcap": True,
 }
 #: The same settings as command-line options (videos at quick's default 320 x 240).
 TINY_CLI = [
@@ -53,6 +54,7 @@ TINY_CLI = [
     "6",
     "--workers",
     "2",
+    "--mcap",
 ]
 FRAMES = 60  # trial_seconds / 0.1 s
 
@@ -235,6 +237,23 @@ def test_videos_play_with_one_frame_per_step(run_folder):
         assert frames[0].shape == (240, 320, 3)
         # The caption's clock changes from frame to frame.
         assert np.abs(frames[0].astype(int) - frames[-1]).mean() > 0.1
+
+
+def test_student_episodes_are_logged_as_mcap(run_folder):
+    """Beside each student video, its episode as a ROS 2 log: one message per frame on the wheel
+    command, odometry and camera topics."""
+    from mcap.reader import make_reader
+
+    folder, results = run_folder
+    for word in WORDS:
+        with open(folder / f"student_{word}.mcap", "rb") as handle:
+            summary = make_reader(handle).get_summary()
+        counts = {
+            c.topic: summary.statistics.channel_message_counts[i]
+            for i, c in summary.channels.items()
+        }
+        for topic in ("/cmd_vel", "/odom", "/camera/image/compressed", "/word"):
+            assert counts[topic] == FRAMES, (word, topic)
 
 
 def test_network_loads_with_its_training(run_folder):

@@ -85,6 +85,7 @@ def test_watch_recovers_the_recorded_poses(recording, networks, tmp_path, capsys
             files["arena"],
             "--network",
             str(networks),
+            "--mcap",
             "--out",
             str(out),
         ]
@@ -109,6 +110,31 @@ def test_watch_recovers_the_recorded_poses(recording, networks, tmp_path, capsys
         words = list(csv.DictReader(handle))
     assert {"word_paper", "word_hierarchical", "word_hierarchical_over_time"} <= set(words[0])
     assert (out / "watched.mp4").stat().st_size > 10_000
+    counts = _mcap_counts(out / "watched.mcap")
+    for topic in ("/camera/image/compressed", "/robots/teacher/pose", "/word", "/directive"):
+        assert counts[topic] >= 0.95 * len(rows), topic
+
+
+def _mcap_counts(path) -> dict:
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as handle:
+        summary = make_reader(handle).get_summary()
+    return {
+        channel.topic: summary.statistics.channel_message_counts[i]
+        for i, channel in summary.channels.items()
+    }
+
+
+def test_demo_logs_an_episode_as_mcap(tmp_path):
+    summary = run_demo(
+        DemoConfig(seconds=2.0, width=160, height=120, video=False, mcap=True),
+        tmp_path / "d.mp4",
+        progress=False,
+    )
+    counts = _mcap_counts(summary["mcap"])
+    for topic in ("/cmd_vel", "/odom", "/tf", "/camera/image/compressed", "/camera/camera_info"):
+        assert counts[topic] == 20, topic
 
 
 def test_watch_recognises_as_the_live_student_does(recording, networks, tmp_path):
