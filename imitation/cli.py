@@ -171,6 +171,18 @@ def _cmd_watch(args) -> int:
     return 0
 
 
+def _cmd_markers(args) -> int:
+    from imitation import printables
+
+    summary = printables.write_plates_pdf(args.out, paper=args.paper)
+    sheets = sorted({page["sheet"] for page in summary["pages"]})
+    print(
+        f"written: {args.out} ({len(summary['pages'])} pages on {', '.join(sheets)}; print at 100% "
+        "and check each sheet's 10 cm bar)"
+    )
+    return 0
+
+
 def _cmd_figures(args) -> int:
     from associator import figures, persistence
     from associator.network import Associator
@@ -402,6 +414,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     watch.add_argument("--out", type=pathlib.Path, required=True, help="folder for what it writes")
     watch.set_defaults(func=_cmd_watch)
+
+    markers = sub.add_parser(
+        "markers",
+        help="the robots' marker plates and the calibration board as a PDF at true printed scale",
+        **defaults,
+    )
+    markers.add_argument("--out", type=pathlib.Path, default=RENDERS / "plates.pdf", help="the PDF")
+    markers.add_argument(
+        "--paper",
+        choices=("A4", "A3", "letter"),
+        default="A4",
+        help="the paper series (plates go on the smallest sheet of it that holds them)",
+    )
+    markers.set_defaults(func=_cmd_markers)
 
     fig = sub.add_parser(
         "figures", help="the paper's Figs. 3, 5 and 6 from a saved network", **defaults
