@@ -9,6 +9,9 @@ import sys
 
 import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL before anything imports mujoco)
 
+# isort: split
+from imitation.calibrate import DEFAULT_BOARD_SPEC
+
 RENDERS = pathlib.Path("renders")
 
 
@@ -168,6 +171,26 @@ def _cmd_watch(args) -> int:
         json.dumps({k: summary[k] for k in ("frames", "frame_seconds", "seen_fraction")}, indent=2)
     )
     print(f"written: {args.out} ({', '.join(summary['files'])})")
+    return 0
+
+
+def _cmd_calibrate(args) -> int:
+    from imitation import calibrate
+    from perception.calibration import CalibrationConfig
+
+    summary = calibrate.run(
+        args.images,
+        calibrate.parse_board_spec(args.board),
+        args.out,
+        CalibrationConfig(
+            distortion=args.distortion,
+            fix_principal_point=args.fix_principal_point,
+            square_pixels=args.square_pixels,
+            min_corners=args.min_corners,
+        ),
+        camera_name=args.camera_name,
+    )
+    print(json.dumps(summary, indent=2, default=str))
     return 0
 
 
@@ -414,6 +437,39 @@ def build_parser() -> argparse.ArgumentParser:
     )
     watch.add_argument("--out", type=pathlib.Path, required=True, help="folder for what it writes")
     watch.set_defaults(func=_cmd_watch)
+
+    cal = sub.add_parser(
+        "calibrate",
+        help="camera intrinsics and distortion from photos of the ChArUco board",
+        **defaults,
+    )
+    cal.add_argument(
+        "images", nargs="+", type=pathlib.Path, help="photos of the board: files and/or folders"
+    )
+    cal.add_argument(
+        "--board",
+        default=DEFAULT_BOARD_SPEC,
+        help="SQUARES_XxSQUARES_Y:SQUARE_M:MARKER_M[:DICTIONARY], the printed board "
+        "(peoplebot markers prints the default)",
+    )
+    cal.add_argument(
+        "--out", type=pathlib.Path, default=pathlib.Path("camera_info.yaml"), help="the ROS YAML"
+    )
+    cal.add_argument("--camera-name", default="camera", help="camera_name in the YAML")
+    cal.add_argument(
+        "--distortion",
+        choices=("plumb_bob", "radial", "none"),
+        default="plumb_bob",
+        help="the lens model fitted (radial: no tangential terms, no k3)",
+    )
+    cal.add_argument(
+        "--fix-principal-point", action="store_true", help="keep the principal point at the centre"
+    )
+    cal.add_argument("--square-pixels", action="store_true", help="fit one focal length")
+    cal.add_argument(
+        "--min-corners", type=_positive_int, default=6, help="least board corners in a photo"
+    )
+    cal.set_defaults(func=_cmd_calibrate)
 
     markers = sub.add_parser(
         "markers",
