@@ -31,6 +31,7 @@ from imitation.streams import TeacherStream
 from perception import camerainfo
 from perception.arenafile import ArenaSetup, read_arena
 from perception.camera import PinholeCamera
+from perception.markers import MarkerDetector
 from perception.pipeline import Tracker
 from perception.wallframe import WALL_NAMES, world_to_wall_batch
 
@@ -284,16 +285,23 @@ def _write_video(path, frames, watched, readouts, camera, frame_seconds) -> None
 
 def _write_log(path, frames, watched, readouts, camera) -> None:
     """What the student saw, as a ROS 2 MCAP log: the frames with the camera's calibration and
-    pose, the robots' tracked poses, the inferred directive and the recognised word."""
+    pose, the detected markers' poses, the robots' tracked poses, the inferred directive and the
+    recognised word."""
     label = next((k for k in ("hierarchical_over_time", "paper") if k in readouts), None)
+    detector = MarkerDetector()
     with EpisodeRecorder(path) as bag:
         for i, frame in enumerate(frames):
             known = {
                 r: p[i] if np.all(np.isfinite(p[i])) else None for r, p in watched.poses.items()
             }
+            markers = [
+                (d.rotation_camera_from_marker, d.position_camera_m)
+                for d in detector.detect(frame, camera)
+            ]
             bag.record(
                 float(watched.time_s[i]),
                 image=frame,
+                marker_poses=markers,
                 camera_matrix=camera.matrix,
                 camera_pose=(camera.rotation_world_from_camera, camera.position_world),
                 estimated_poses=known,

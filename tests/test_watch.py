@@ -111,7 +111,7 @@ def test_watch_recovers_the_recorded_poses(recording, networks, tmp_path, capsys
     assert {"word_paper", "word_hierarchical", "word_hierarchical_over_time"} <= set(words[0])
     assert (out / "watched.mp4").stat().st_size > 10_000
     counts = _mcap_counts(out / "watched.mcap")
-    for topic in ("/camera/image/compressed", "/robots/teacher/pose", "/word", "/directive"):
+    for topic in ("/camera/image/compressed", "/markers", "/robots/teacher/pose", "/word"):
         assert counts[topic] >= 0.95 * len(rows), topic
 
 
