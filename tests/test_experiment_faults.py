@@ -311,7 +311,11 @@ def test_user_mistakes_are_one_line_and_exit_status_2(tmp_path, capsys, argv, fr
     }
     argv = [a.format(**names) for a in argv]
     try:
-        code = main([*argv, "--quick"] if argv[0] == "reproduce" else argv)
+        if argv[0] == "reproduce":
+            argv = [*argv, "--quick"] + (
+                [] if "--out" in argv else ["--out", str(tmp_path / "run")]
+            )
+        code = main(argv)
     except SystemExit as error:  # argparse's own refusals
         code = error.code
     err = capsys.readouterr().err.strip()
