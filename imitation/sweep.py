@@ -28,11 +28,12 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 import numpy as np
+import ray
 from tqdm import tqdm
 
-from imitation import report, storage
+from imitation import report, reproduce, storage
 from imitation.config import RunConfig
-from imitation.results import PAPER_TABLE_I
+from imitation.results import PAPER_TABLE_I, package_versions
 from imitation.runstate import differing_keys
 
 #: The environment variable through which a test makes a cell's worker die once (its value: a
@@ -120,9 +121,6 @@ def grid(base: RunConfig, seeds, settings) -> list[Cell]:
 def run_cell(config: dict, folder: str, stream_cache: str) -> dict:
     """Runs (or resumes) one cell's run folder in this process; returns its results, its
     ``results.md`` and where it ran. The body of the Ray task."""
-    import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL before mujoco loads, in a fresh worker)
-    from imitation import reproduce
-
     marker = os.environ.get(DIE_ONCE_ENV)
     if marker and not os.path.exists(marker):
         pathlib.Path(marker).write_text(str(os.getpid()))
@@ -137,12 +135,8 @@ def run_cell(config: dict, folder: str, stream_cache: str) -> dict:
 
 
 def _node_id() -> str | None:
-    try:
-        import ray
-
-        return ray.get_runtime_context().get_node_id()
-    except Exception:  # noqa: BLE001 (outside Ray)
-        return None
+    """Returns the Ray node this process runs on (None outside Ray)."""
+    return ray.get_runtime_context().get_node_id() if ray.is_initialized() else None
 
 
 @dataclasses.dataclass
@@ -206,14 +200,10 @@ def _finished_results(folder: pathlib.Path, config: RunConfig) -> dict | None:
 
 
 def _version() -> str:
-    from imitation.results import package_versions
-
     return package_versions()["peoplebot-imitation"]
 
 
 def _run_on_ray(cells, out, outcomes, address, workers, progress) -> None:
-    import ray
-
     address = address or os.environ.get("RAY_ADDRESS")
     env = {DIE_ONCE_ENV: os.environ[DIE_ONCE_ENV]} if DIE_ONCE_ENV in os.environ else {}
     started_here = not ray.is_initialized()
