@@ -139,13 +139,13 @@ class CameraRecognition:
 #: bottom-up pass (name -> the read-out's motor weight).
 READOUTS = {"paper": 1.0, "motor_weighted": 3.0}
 
-# Recognition fields and their keys in state.json (``truth`` is the paper's read-out).
-_TRUTH_KEYS = {
-    "truth": "truth",
-    "truth_motor_weighted": "truth_motor_weighted",
-    "truth_hierarchical": "truth_hierarchical",
-    "truth_hierarchical_over_time": "truth_hierarchical_over_time",
-}
+# Recognition fields, named as their keys in state.json (``truth`` is the paper's read-out).
+_TRUTH_KEYS = (
+    "truth",
+    "truth_motor_weighted",
+    "truth_hierarchical",
+    "truth_hierarchical_over_time",
+)
 _CAMERA_KEYS = (
     "vision",
     "vision_motor_weighted",
