@@ -12,7 +12,8 @@ Success, per trial (all in ``SuccessConfig``):
 - ``pick`` (table wall): from a random pose in the table's wall area, 1.0-1.6 m from the wall, at most
   0.8 m either side of its middle, facing it within 45 deg (starts in the box's far corners, which
   lie in a side wall's area, are drawn again): within 60 s reaches the teacher's
-  docked pose within 15 cm and 20 deg, without touching anything.
+  docked pose within 15 cm and 20 deg and **settles** there: it stays inside that tolerance for
+  3 s on end, and touches nothing during the trial (passing through the dock does not count).
 - ``pick`` (other walls): the same start relative to one of the three other walls; success is the
   equivalent docked pose at that wall (the wall frame cannot tell walls apart, so the student docks
   where it is).
@@ -48,13 +49,25 @@ FIG4_START = (0.0, 0.6, math.pi / 2)
 
 @dataclasses.dataclass(frozen=True)
 class SuccessConfig:
-    """The success definitions' numbers (metres, degrees, seconds)."""
+    """The success definitions' numbers (metres, degrees, seconds); ``dock_settle_s``: how long a
+    'pick' must stay inside the docking tolerance on end (0: reaching it once is enough)."""
+
+    def __post_init__(self):
+        for field in dataclasses.fields(self):
+            value = getattr(self, field.name)
+            if isinstance(value, bool) or not (
+                isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
+            ):
+                raise ValueError(
+                    f"performance.success.{field.name} must be a finite number >= 0, got {value!r}"
+                )
 
     go_min_wall_areas: int = 2
     go_window_s: float = 10.0
     go_min_window_travel_m: float = 0.2
     dock_position_tol_m: float = 0.15
     dock_heading_tol_deg: float = 20.0
+    dock_settle_s: float = 3.0
     lift_min_gap_m: float = 0.5
     lift_heading_tol_deg: float = 45.0
 
@@ -130,7 +143,8 @@ def make_action(spec, drive_command, head_command=(0.0, 0.0)) -> np.ndarray:
 
 class TeacherAgent:
     """The teacher's controller performing one word on the student's robot: the reference row. It
-    reads the true pose (the teacher is a scripted demonstrator, not a learner)."""
+    reads the true pose (the teacher is a scripted demonstrator, not a learner); once its behaviour
+    is done it stands still (directive None), as a real robot would."""
 
     def __init__(
         self,
@@ -158,8 +172,12 @@ class TeacherAgent:
 
     def step(self, timestep, dt: float = 0.1) -> np.ndarray:
         pose = timestep.observation["student_pose"]
-        self.directive = self.controller.step(pose, None, dt)
-        return make_action(self.spec, self.drive.command(self.directive))
+        directive = self.controller.step(pose, None, dt)
+        if self.controller.finished:
+            self.directive = None
+            return make_action(self.spec, (0.0, 0.0))
+        self.directive = directive
+        return make_action(self.spec, self.drive.command(directive))
 
     @property
     def finished(self) -> bool:
@@ -227,7 +245,11 @@ class SuccessMonitor:
             raise ValueError(f"unknown row {row!r}; allowed: {', '.join(ROWS)}")
         self.row, self.wall, self.dt, self.config, self.arena = row, wall, dt, config, arena
         self.touched = False
+        self.touched_at_s: float | None = None
         self.reached = False
+        self.reached_at_s: float | None = None
+        self.inside_s = 0.0  # 'pick': seconds inside the docking tolerance on end, up to now
+        self.longest_inside_s = 0.0
         self.areas: set[str] = set()
         self.positions: list[tuple[float, float]] = []
         self.dock = dock_pose_at(wall, arena, teacher)
@@ -238,15 +260,23 @@ class SuccessMonitor:
         """Records one step of the true pose; returns True when the trial has already succeeded."""
         c = self.config
         x, y, yaw = (float(v) for v in true_pose)
-        self.touched |= touching
         self.positions.append((x, y))
+        if touching and not self.touched:  # times are the ends of the steps, from the start
+            self.touched, self.touched_at_s = True, len(self.positions) * self.dt
         self.areas.add(world_to_wall(x, y, yaw, self.arena).wall)
         if self.touched or self.row == "go":
             return False
         if self.row in ("pick", "pick_other_wall"):
             dx, dy = x - self.dock[0], y - self.dock[1]
             heading = abs(float(wrap_degrees(math.degrees(yaw - self.dock[2]))))
-            if math.hypot(dx, dy) <= c.dock_position_tol_m and heading <= c.dock_heading_tol_deg:
+            inside = (
+                math.hypot(dx, dy) <= c.dock_position_tol_m and heading <= c.dock_heading_tol_deg
+            )
+            # A step inside counts its whole control period: a robot inside for n steps on end
+            # has held the dock for n dt seconds.
+            self.inside_s = self.inside_s + self.dt if inside else 0.0
+            self.longest_inside_s = max(self.longest_inside_s, self.inside_s)
+            if inside and self.inside_s >= c.dock_settle_s - 1e-9:
                 self.reached = True
         elif self.row == "lift":
             x0, x1, y0, y1 = self.arena.table_box
@@ -254,37 +284,65 @@ class SuccessMonitor:
             facing = abs(float(wrap_degrees(math.degrees(math.atan2(-y, -x) - yaw))))
             if gap >= self.docked_gap + c.lift_min_gap_m and facing <= c.lift_heading_tol_deg:
                 self.reached = True
+        if self.reached and self.reached_at_s is None:
+            self.reached_at_s = len(self.positions) * self.dt
         return self.reached
 
     def success(self) -> bool:
         """Returns the trial's verdict (call at its end)."""
-        if self.touched:
-            return False
-        if self.row != "go":
-            return self.reached
+        return self.verdict()[0]
+
+    def verdict(self) -> tuple[bool, str]:
+        """Returns the trial's verdict and its reason in one line (call at its end)."""
         c = self.config
+        if self.touched:
+            return False, f"touched a wall or the table at {self.touched_at_s:.1f} s"
+        if self.row in ("pick", "pick_other_wall"):
+            if self.reached:
+                return True, (
+                    f"docked and held the dock for {c.dock_settle_s:g} s "
+                    f"(settled at {self.reached_at_s:.1f} s)"
+                )
+            if self.longest_inside_s == 0:
+                return False, "never inside the docking tolerance"
+            return False, (
+                f"inside the docking tolerance for at most {self.longest_inside_s:.1f} s on end, "
+                f"{c.dock_settle_s:g} s needed"
+            )
+        if self.row == "lift":
+            if self.reached:
+                return True, f"left the table and faced the centre at {self.reached_at_s:.1f} s"
+            return False, "did not leave the table facing the centre"
         window = max(1, int(round(c.go_window_s / self.dt)))
         p = np.asarray(self.positions)
         if len(p) <= window:
-            return False
+            return False, f"ended before one {c.go_window_s:g} s window"
         # Path length driven in every window (driving back and forth counts, turning on the spot
         # does not).
         path = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(p, axis=0).T))])
         travel = path[window:] - path[:-window]
-        return len(self.areas) >= c.go_min_wall_areas and bool(
-            np.all(travel >= c.go_min_window_travel_m)
-        )
+        if len(self.areas) < c.go_min_wall_areas:
+            return False, f"visited {len(self.areas)} wall area(s), {c.go_min_wall_areas} needed"
+        if not np.all(travel >= c.go_min_window_travel_m):
+            stalled = int(np.argmax(travel < c.go_min_window_travel_m)) * self.dt
+            return False, (
+                f"drove under {c.go_min_window_travel_m:g} m in the {c.go_window_s:g} s from "
+                f"{stalled:.1f} s"
+            )
+        return True, f"kept clear and moving, {len(self.areas)} wall areas visited"
 
 
 @dataclasses.dataclass
 class TrialResult:
-    """One trial: its row, policy, start, verdict, duration and the true and estimated traces."""
+    """One trial: its row, policy, start, verdict and its reason, duration and the true and
+    estimated traces."""
 
     row: str
     policy: str
     start: tuple
     wall: str
     success: bool
+    reason: str
     seconds: float
     touched: bool
     trace: np.ndarray  # (n, 3) true world poses
@@ -328,14 +386,16 @@ def run_trial(
         succeeded = monitor.update(true_pose, touching)
         if frame_callback is not None:
             frame_callback(env, agent)
-        if (succeeded and stop_on_success) or getattr(agent, "finished", False) or timestep.last():
+        if (succeeded and stop_on_success) or timestep.last():
             break
+    success, reason = monitor.verdict()
     return TrialResult(
         row,
         "teacher" if isinstance(agent, TeacherAgent) else "student",
         tuple(float(v) for v in start),
         wall,
-        monitor.success(),
+        success,
+        reason,
         len(trace) * dt,
         monitor.touched,
         np.asarray(trace),

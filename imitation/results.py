@@ -191,8 +191,9 @@ class RecognitionResult:
 @dataclasses.dataclass(frozen=True)
 class TrialRecord:
     """One performance trial: its row, policy, start (world x m, y m, yaw rad) and the wall its
-    success refers to; the verdict, duration, whether the robot touched anything, where it ended and
-    the median error of the student's own-pose estimate (cm; None when it had none)."""
+    success refers to; the verdict, duration, whether the robot touched anything, where it ended,
+    the median error of the student's own-pose estimate (cm; None when it had none) and the
+    verdict's reason in one line."""
 
     row: str
     policy: str
@@ -204,6 +205,7 @@ class TrialRecord:
     touched: bool
     end_pose: tuple
     own_pose_error_cm_median: float | None
+    reason: str = ""
 
     def to_json(self) -> dict:
         out = dataclasses.asdict(self)

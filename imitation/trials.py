@@ -1,4 +1,5 @@
-"""The performance and video stages of ``peoplebot reproduce``, run in parallel processes."""
+"""The performance stage of ``peoplebot reproduce`` and Fig. 4's traces, run in parallel
+processes; the videos are ``imitation.videos``."""
 
 from __future__ import annotations
 
@@ -6,20 +7,14 @@ import dataclasses
 import json
 import pathlib
 
-import imageio.v2 as imageio
-import mujoco
 import numpy as np
 
 from associator import encoding, persistence
 from imitation import performance, storage
 from imitation.config import RunConfig
 from imitation.observers import Calibration, StudentVision
-from imitation.overlay import annotate
 from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
-from imitation.rosbag import EpisodeRecorder
-from peoplebot_sim.cameras import camera_model
-from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import load
 
 #: Student policies and the network file each drives with (in the run folder).
@@ -160,6 +155,7 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
                 own_pose_error_cm_median=float(np.median(own_error) * 100)
                 if own_error.size
                 else None,
+                reason=result.reason,
             )
         )
         pathlib.Path(progress_file).write_text(str(k + 1))
@@ -192,31 +188,118 @@ def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceRes
     return PerformanceResult(rates, fig4_traces(config, folder))
 
 
+#: Random-start traces per word and policy drawn beside Fig. 4 (the first starts of the trials).
+RANDOM_TRACES = 10
+#: The rows whose random starts Fig. 4's second panel shows, one per word.
+TRACE_ROWS = {"go": "go", "pick": "pick", "lift": "lift"}
+
+
 def fig4_traces(config: RunConfig, folder: pathlib.Path) -> dict:
-    """Runs the student from the paper's start with each word (no early stop) and saves the traces
-    (``fig4_traces.npz``); returns where each ended."""
-    model = persistence.load(folder / "network.npz")
+    """Runs every policy from the paper's start with each word (no early stop), and from the
+    first ``RANDOM_TRACES`` trial starts of each word's row (stopping at success, as the trials
+    do); saves the traces (``fig4_traces.npz``); returns where the paper's network ended.
+
+    Keys: ``<word>`` and ``<word>_directives`` (the paper's network, Fig. 4),
+    ``fig4_<policy>_<word>`` (n, 3) and ``fig4_<policy>_<word>_success`` for every policy,
+    ``random_<policy>_<word>`` (k, n, 3), NaN after a trial's end, and
+    ``random_<policy>_<word>_success`` (k,).
+    """
+    policies = tuple(
+        p for p in ("teacher", "student", "student_hierarchical") if p in policies_of(config)
+    )
+    jobs = [("fig4", policy, word, None) for word in TRACE_ROWS for policy in policies]
+    for item in trial_plan(config, policies):
+        if item.row in TRACE_ROWS.values() and item.index < RANDOM_TRACES:
+            jobs.append(("random", item.policy, item.row, item))
+    workers = max(1, min(config.workers, len(jobs)))
+    chunks = [jobs[i::workers] for i in range(workers)]
+    results = run_parallel(
+        _traces_worker, chunks, (config, str(folder)), workers, folder, "Fig. 4 traces", len(jobs)
+    )
+    done = {}
+    for chunk in results:
+        done.update(chunk)
+    n = int(round(config.performance.trial_seconds / config.task.control_timestep))
+    traces, out = {}, {}
+    for kind, policy, word, item in jobs:
+        key = (kind, policy, word, None if item is None else item.index)
+        trace, directives, success, touched, seconds = done[key]
+        if kind == "fig4":
+            traces[f"fig4_{policy}_{word}"] = trace
+            traces[f"fig4_{policy}_{word}_success"] = np.asarray(success)
+            if policy == "student":
+                traces[word] = trace
+                traces[f"{word}_directives"] = np.asarray([d or "" for d in directives])
+                out[word] = Fig4Trace(tuple(float(v) for v in trace[-1]), touched, seconds)
+            continue
+        padded = np.full((n, 3), np.nan)
+        padded[: len(trace)] = trace[:n]
+        traces.setdefault(f"random_{policy}_{word}", []).append(padded)
+        traces.setdefault(f"random_{policy}_{word}_success", []).append(success)
+    storage.save_npz(folder / "fig4_traces.npz", **{k: np.asarray(v) for k, v in traces.items()})
+    return out
+
+
+def _traces_worker(jobs: list, config: RunConfig, folder: str, progress_file: str) -> dict:
+    """Runs the trace jobs ``(kind, policy, word, planned trial or None)``; returns each job's
+    ``(trace, directives, success, touched, seconds)``."""
+    import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL in a freshly spawned process)
+
     env = student_environment(config)
     calibration = None
     if config.vision.mode != "truth":
         calibration = Calibration(env.physics, config.vision.width, config.vision.height)
-    traces, out = {}, {}
-    for word in ("go", "pick", "lift"):
-        result = _from_fig4_start(config, env, model, calibration, word)
-        traces[word] = result.trace
-        traces[f"{word}_directives"] = np.asarray([d or "" for d in result.directives])
-        out[word] = Fig4Trace(
-            tuple(float(v) for v in result.trace[-1]), result.touched, result.seconds
+    models, out = {}, {}
+    for k, (kind, policy, word, item) in enumerate(jobs):
+        if policy != "teacher" and policy not in models:
+            models[policy] = persistence.load(pathlib.Path(folder) / STUDENT_NETWORKS[policy])
+        if kind == "fig4":
+            result = from_fig4_start(config, env, policy, models.get(policy), calibration, word)
+        else:
+            row_index = performance.ROWS.index(item.row)
+            agent = make_agent(
+                config,
+                policy,
+                word,
+                env,
+                models.get(policy),
+                calibration,
+                rng=[config.seed, row_index, item.index],
+            )
+            result = performance.run_trial(
+                env,
+                agent,
+                item.row,
+                item.start,
+                item.wall,
+                seconds=config.performance.trial_seconds,
+                config=config.performance.success,
+            )
+        key = (kind, policy, word, None if item is None else item.index)
+        out[key] = (
+            result.trace,
+            result.directives,
+            bool(result.success),
+            bool(result.touched),
+            result.seconds,
         )
+        pathlib.Path(progress_file).write_text(str(k + 1))
     env.close()
-    storage.save_npz(folder / "fig4_traces.npz", **traces)
     return out
 
 
-def _from_fig4_start(config: RunConfig, env, model, calibration, word: str, frame_callback=None):
-    """Runs the student told ``word`` from the paper's Fig. 4 start for a whole trial (no early
-    stop); returns the trial."""
-    agent = make_agent(config, "student", word, env, model, calibration)
+def fig4_teacher_rng(config: RunConfig, word: str) -> list:
+    """Returns the seed of the teacher's run from the paper's start with ``word``."""
+    return [config.seed, len(performance.ROWS), ("go", "pick", "lift").index(word)]
+
+
+def from_fig4_start(
+    config: RunConfig, env, policy: str, model, calibration, word: str, frame_callback=None
+):
+    """Runs ``policy`` (a student driving with ``model``, or the teacher) told ``word`` from the
+    paper's Fig. 4 start for a whole trial (no early stop); returns the trial."""
+    rng = fig4_teacher_rng(config, word) if policy == "teacher" else None
+    agent = make_agent(config, policy, word, env, model, calibration, rng=rng)
     return performance.run_trial(
         env,
         agent,
@@ -228,128 +311,3 @@ def _from_fig4_start(config: RunConfig, env, model, calibration, word: str, fram
         stop_on_success=False,
         frame_callback=frame_callback,
     )
-
-
-class _VideoWriter:
-    """Writes one annotated showcase frame per control step of a trial."""
-
-    def __init__(
-        self,
-        env,
-        path,
-        word: str,
-        width: int,
-        height: int,
-        progress_file: str,
-        frames_before: int,
-        mcap: bool = False,
-    ):
-        self.path, self.tmp = pathlib.Path(path), storage.temporary_name(path)
-        self.bag = EpisodeRecorder(self.path.with_suffix(".mcap")) if mcap else None
-        self.camera = camera_model(env.physics, "showcase", width, height)
-        self.word, self.progress_file, self.frames = word, progress_file, frames_before
-        self.steps = 0
-        self.renderer = FrameRenderer(env.physics, width, height, antialias=True)
-        self.writer = imageio.get_writer(
-            str(self.tmp),
-            fps=20,
-            codec="libx264",
-            quality=7,
-            macro_block_size=8,
-            ffmpeg_log_level="error",
-        )
-
-    def __call__(self, env, agent) -> None:
-        self.steps += 1
-        time_s = self.steps * env.task.control_timestep
-        caption = f"student told '{self.word}'   t = {time_s:4.1f} s"
-        image = self.renderer.render("showcase")
-        if self.bag is not None:
-            self._log(env, agent, time_s, image)
-        self.writer.append_data(annotate(image, self.word, agent.directive, caption, agent.motor))
-        self.frames += 1
-        if self.frames % 20 == 0:
-            pathlib.Path(self.progress_file).write_text(str(self.frames))
-
-    def _log(self, env, agent, time_s: float, image) -> None:
-        """Records the step in the episode's MCAP log: the wheel command, the student's true and
-        estimated pose and velocity, the camera's frame, the word and directive."""
-        physics, student = env.physics, env.task.student
-        velocity = np.zeros(6)  # body frame: angular (x, y, z), then linear (x, y, z)
-        mujoco.mj_objectVelocity(
-            physics.model.ptr,
-            physics.data.ptr,
-            mujoco.mjtObj.mjOBJ_BODY,
-            student.body_id(physics),
-            velocity,
-            1,
-        )
-        self.bag.record(
-            time_s,
-            cmd_vel=physics.named.data.ctrl[["student/forward", "student/turn"]],
-            student_pose=student.planar_pose(physics),
-            student_velocity=(velocity[3], velocity[2]),
-            image=image,
-            camera_matrix=self.camera.matrix,
-            camera_pose=(self.camera.rotation_world_from_camera, self.camera.position_world),
-            estimated_poses={"student": getattr(agent, "own_pose", None)},
-            word=self.word,
-            directive=agent.directive,
-        )
-
-    def close(self, keep: bool = True) -> None:
-        """Finishes the video; ``keep``: move it to its name (False: a failed trial's is dropped)."""
-        self.writer.close()
-        self.renderer.close()
-        if self.bag is not None:
-            self.bag.close(keep=keep)
-        if keep:
-            storage.commit(self.tmp, self.path)
-        else:
-            self.tmp.unlink(missing_ok=True)
-
-
-def _video_worker(
-    words: list, config: RunConfig, network: str, folder: str, progress_file: str
-) -> list[str]:
-    models, env, calibration = _worker_setup(config, {"student": network})
-    model = models["student"]
-    paths, frames = [], 0
-    width, height = config.videos.width, config.videos.height
-    for word in words:
-        path = pathlib.Path(folder) / f"student_{word}.mp4"
-        video = _VideoWriter(
-            env, path, word, width, height, progress_file, frames, mcap=config.videos.mcap
-        )
-        finished = False
-        try:
-            _from_fig4_start(config, env, model, calibration, word, video)
-            finished = True
-        finally:
-            video.close(keep=finished)
-        frames = video.frames
-        paths.append(path.name)
-    env.close()
-    return paths
-
-
-def stage_videos(config: RunConfig, folder: pathlib.Path) -> dict:
-    """Renders ``student_<word>.mp4``: the student performing each word from the paper's start."""
-    words = ["go", "pick", "lift"]
-    workers = max(1, min(config.workers, len(words)))
-    chunks = [words[i::workers] for i in range(workers)]
-    frames = int(round(config.performance.trial_seconds / config.task.control_timestep)) * len(
-        words
-    )
-    results = run_parallel(
-        _video_worker,
-        chunks,
-        (config, str(folder / "network.npz"), str(folder)),
-        workers,
-        folder,
-        "videos",
-        frames,
-    )
-    videos = sorted(p for chunk in results for p in chunk)
-    logs = [str(pathlib.Path(v).with_suffix(".mcap")) for v in videos] if config.videos.mcap else []
-    return {"videos": videos, **({"mcap": logs} if logs else {})}

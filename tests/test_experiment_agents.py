@@ -149,6 +149,34 @@ def test_teacher_agent_actions_satisfy_the_spec(student_env, word):
     assert np.any(actions[:, :2] != 0)
 
 
+def test_teacher_reference_docks_settles_and_then_stands_still(student_env):
+    """The teacher's own 'pick' from a trial start passes the settling rule, and once its docking
+    is done it sends zero wheel commands (no repeat of its last turn) and stays docked."""
+    start, wall = performance.sample_start("pick", np.random.default_rng(4))
+    agent = TeacherAgent("pick", student_env.action_spec(), rng=0)
+    drive, finished = [], []
+    result = performance.run_trial(
+        student_env,
+        agent,
+        "pick",
+        start,
+        wall,
+        stop_on_success=False,
+        frame_callback=lambda env, a: (drive.append(a.directive), finished.append(a.finished)),
+    )
+    assert result.success, result.reason
+    assert "held the dock" in result.reason
+    assert result.seconds == pytest.approx(60.0)  # not cut short when the teacher finished
+    done = finished.index(True)
+    assert done < len(finished) - 50
+    assert all(d is None for d in drive[done:])
+    dock = performance.dock_pose_at("top")
+    end = result.trace[-1]
+    assert np.hypot(end[0] - dock[0], end[1] - dock[1]) < 0.05
+    moved = np.abs(np.diff(result.trace[done + 5 :], axis=0)).max(axis=0)
+    assert np.all(moved[:2] < 1e-3) and moved[2] < 1e-3, moved
+
+
 @pytest.mark.parametrize("row", ["pick", "pick_other_wall"])
 def test_pick_starts_lie_in_their_wall_area_within_the_stated_box(row):
     """The box's far corners (1.6 m out, 0.8 m aside) lie in a neighbouring wall's area; those

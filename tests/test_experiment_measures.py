@@ -89,11 +89,52 @@ def test_go_shorter_than_one_window_fails():
 
 
 # ------------------------------------------------------------------------------ 'pick'
-def test_pick_reaching_the_dock_within_tolerance_succeeds():
+SETTLE_STEPS = 30  # SuccessConfig.dock_settle_s (3 s) at 0.1 s a step
+
+
+def settle(poses, steps: int = SETTLE_STEPS) -> np.ndarray:
+    """Returns ``poses`` followed by ``steps`` more steps standing at the last pose."""
+    return np.concatenate([poses, np.repeat(poses[-1:], steps, axis=0)])
+
+
+def test_pick_reaching_the_dock_within_tolerance_and_staying_succeeds():
     dock = dock_pose_at("top")
     near = (dock[0] + 0.14, dock[1], dock[2] + math.radians(15.0))
-    monitor = run_monitor("pick", "top", approach(near))
+    monitor = run_monitor("pick", "top", settle(approach(near)))
     assert monitor.reached and monitor.success()
+    assert monitor.verdict()[1].startswith("docked and held the dock for 3 s")
+
+
+def test_pick_passing_through_the_dock_fails():
+    """Driving through the docked pose without stopping is no docking."""
+    dock = dock_pose_at("top")
+    through = approach((dock[0], dock[1] - 0.4, dock[2]), n=40, start=(dock[0], dock[1] + 0.4))
+    monitor = run_monitor("pick", "top", through)
+    assert not monitor.success()
+    assert 0 < monitor.longest_inside_s < 3.0
+    assert "at most" in monitor.verdict()[1]
+
+
+def test_pick_must_stay_three_seconds_on_end():
+    """29 steps (2.9 s) inside, one out, 29 in again fails; 30 steps on end succeeds."""
+    dock = np.asarray(dock_pose_at("top"))
+    away = dock - (0.0, 0.3, 0.0)
+
+    def trace(*runs):  # alternating runs of steps away from and at the dock, away first
+        return np.concatenate(
+            [np.repeat([away if i % 2 == 0 else dock], n, axis=0) for i, n in enumerate(runs)]
+        )
+
+    assert not run_monitor("pick", "top", trace(5, 29, 1, 29, 5)).success()
+    assert run_monitor("pick", "top", trace(5, 30)).success()
+    assert not run_monitor("pick", "top", trace(5, 29)).success()
+    assert run_monitor("pick", "top", trace(5, 29, 1, 30)).success()
+
+
+def test_pick_settle_time_zero_counts_the_first_step_inside():
+    monitor = SuccessMonitor("pick", "top", DT, SuccessConfig(dock_settle_s=0.0))
+    verdicts = [monitor.update(p, False) for p in approach(dock_pose_at("top"), n=40)]
+    assert verdicts[-1] and not verdicts[0]
 
 
 def test_pick_sixteen_centimetres_away_fails():
@@ -110,24 +151,35 @@ def test_pick_at_the_dock_position_with_wrong_heading_fails():
 
 
 def test_pick_that_touches_on_the_way_fails():
-    poses = approach(dock_pose_at("top"))
+    poses = settle(approach(dock_pose_at("top")))
     touching = [False] * len(poses)
     touching[5] = True
-    assert not run_monitor("pick", "top", poses, touching).success()
+    monitor = run_monitor("pick", "top", poses, touching)
+    assert not monitor.success()
+    assert monitor.verdict()[1] == "touched a wall or the table at 0.6 s"
 
 
-def test_pick_reports_success_on_the_step_it_docks():
-    poses = approach(dock_pose_at("top"), n=40)
+def test_pick_reports_success_on_the_step_it_has_held_the_dock_three_seconds():
+    poses = settle(approach(dock_pose_at("top"), n=40))
     monitor = SuccessMonitor("pick", "top", DT)
     verdicts = [monitor.update(p, False) for p in poses]
-    assert verdicts[-1] and not verdicts[0]
+    inside = [
+        math.hypot(p[0] - dock_pose_at("top")[0], p[1] - dock_pose_at("top")[1]) <= 0.15
+        for p in poses
+    ]
+    first_inside = inside.index(True)
+    assert verdicts.index(True) == first_inside + SETTLE_STEPS - 1
+    assert monitor.reached_at_s == pytest.approx((first_inside + SETTLE_STEPS) * DT)
 
 
 def test_pick_at_another_wall_is_judged_at_that_walls_dock():
     left = dock_pose_at("left")
-    assert run_monitor("pick_other_wall", "left", approach(left, start=(-0.2, 0.0))).success()
+    assert run_monitor(
+        "pick_other_wall", "left", settle(approach(left, start=(-0.2, 0.0)))
+    ).success()
     # Docking at the table's wall is not success when the trial started at the left wall.
-    assert not run_monitor("pick_other_wall", "left", approach(dock_pose_at("top"))).success()
+    top = settle(approach(dock_pose_at("top")))
+    assert not run_monitor("pick_other_wall", "left", top).success()
 
 
 # ------------------------------------------------------------------------------ 'lift'
@@ -155,7 +207,7 @@ def test_lift_facing_away_from_the_centre_fails():
 def test_success_config_numbers_are_the_documented_ones():
     c = SuccessConfig()
     assert (c.go_min_wall_areas, c.go_window_s, c.go_min_window_travel_m) == (2, 10.0, 0.2)
-    assert (c.dock_position_tol_m, c.dock_heading_tol_deg) == (0.15, 20.0)
+    assert (c.dock_position_tol_m, c.dock_heading_tol_deg, c.dock_settle_s) == (0.15, 20.0, 3.0)
     assert (c.lift_min_gap_m, c.lift_heading_tol_deg) == (0.5, 45.0)
 
 
