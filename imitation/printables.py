@@ -307,7 +307,7 @@ def _model_boxes() -> dict:
 
     boxes = {}
     for name in ("chassis", "column", "deck"):
-        geom = root.find(f".//geom[@name='{name}_visual']")
+        geom = root.find(f".//geom[@name='{name}_collision']")
         boxes[name] = (floats(geom.get("pos")), floats(geom.get("size")))
     wheel = root.find(".//body[@name='left_wheel']")
     wheel_geom = wheel.find("geom[@name='left_wheel_visual']")
