@@ -1,7 +1,8 @@
 """The paper's figures 3, 5, 6 and 7 for a fitted ``Associator`` (matplotlib, Agg backend).
 
 Each function draws one figure, writes it to ``path`` (format from the suffix) and returns the path.
-Hidden-layer maps are drawn as the 16 x 48 grid, dark for strong weights, as in the paper.
+Hidden-layer maps are drawn as the 16 x 48 grid, dark for strong weights, as in the paper, each with
+its colour bar.
 """
 
 from __future__ import annotations
@@ -29,7 +30,9 @@ def _save(fig, path) -> str:
 def fig3_word_codes(path, words=encoding.WORDS) -> str:
     """Fig. 3: the 4 x 20 language codes of ``words`` with their phonemes."""
     table = encoding.phoneme_table()
-    fig, axes = plt.subplots(len(words), 1, figsize=(7, 1.4 * len(words)), squeeze=False)
+    fig, axes = plt.subplots(
+        len(words), 1, figsize=(7, 1.9 * len(words)), squeeze=False, constrained_layout=True
+    )
     for ax, word in zip(axes[:, 0], words, strict=True):
         phonemes = encoding.pronounce(word)
         code = encoding.encode_word(word).reshape(encoding.N_PHONEMES_PER_WORD, N_FEATURES)
@@ -42,11 +45,15 @@ def fig3_word_codes(path, words=encoding.WORDS) -> str:
     return _save(fig, path)
 
 
-def _grid(ax, values: np.ndarray, shape, title: str) -> None:
-    ax.imshow(values.reshape(shape), cmap="Greys", interpolation="nearest")
+def _grid(ax, values: np.ndarray, shape, title: str, label: str = "weight") -> None:
+    """Draws ``values`` on the hidden grid in ``ax`` with a colour bar labelled ``label``."""
+    image = ax.imshow(values.reshape(shape), cmap="Greys", interpolation="nearest")
     ax.set_xticks([])
     ax.set_yticks([])
     ax.set_title(title, fontsize=8)
+    bar = ax.figure.colorbar(image, ax=ax, fraction=0.03, pad=0.02)
+    bar.ax.tick_params(labelsize=6)
+    bar.set_label(label, fontsize=6)
 
 
 def select_language_units(model: Associator) -> list[int]:
@@ -77,7 +84,7 @@ def fig5_language_weights(model: Associator, path, units=None) -> str:
     units = select_language_units(model) if units is None else list(units)
     codes = model.vocabulary_codes_
     w_td = model.W_td_[LANGUAGE_SLICE]
-    fig, axes = plt.subplots(1, len(units), figsize=(3.2 * len(units), 1.6), squeeze=False)
+    fig, axes = plt.subplots(1, len(units), figsize=(3.6 * len(units), 1.7), squeeze=False)
     for ax, unit in zip(axes[0], units, strict=True):
         active = [w for w, c in zip(model.vocabulary, codes, strict=True) if c[unit] > 0.5]
         label = ", ".join(f"'{w}'" for w in active) if len(active) < len(codes) else "all words"
@@ -88,7 +95,7 @@ def fig5_language_weights(model: Associator, path, units=None) -> str:
 def fig6_motor_weights(model: Associator, path) -> str:
     """Fig. 6: W_td to the four motor units drawn on the hidden grid."""
     w_td = model.W_td_[MOTOR_SLICE]
-    fig, axes = plt.subplots(1, len(DIRECTIVES), figsize=(3.2 * len(DIRECTIVES), 1.6))
+    fig, axes = plt.subplots(1, len(DIRECTIVES), figsize=(3.6 * len(DIRECTIVES), 1.7))
     for ax, name, weights in zip(axes, DIRECTIVES, w_td, strict=True):
         _grid(ax, weights, model.hidden_shape, name.replace("_", " "))
     return _save(fig, path)
@@ -127,11 +134,23 @@ def fig7_hidden_activations(
     """
     recognised, performed = hidden_sums(model, recognition, performance, correct_only)
     words = list(recognition)
-    fig, axes = plt.subplots(2, len(words), figsize=(3.2 * len(words), 3.4), squeeze=False)
+    fig, axes = plt.subplots(2, len(words), figsize=(3.6 * len(words), 3.6), squeeze=False)
     for col, word in enumerate(words):
-        _grid(axes[0, col], recognised[word], model.hidden_shape, f"a) recognising '{word}'")
+        _grid(
+            axes[0, col],
+            recognised[word],
+            model.hidden_shape,
+            f"a) recognising '{word}'",
+            "summed activation",
+        )
         if word in performed:
-            _grid(axes[1, col], performed[word], model.hidden_shape, f"b) performing '{word}'")
+            _grid(
+                axes[1, col],
+                performed[word],
+                model.hidden_shape,
+                f"b) performing '{word}'",
+                "summed activation",
+            )
         else:
             axes[1, col].axis("off")
     return _save(fig, path)

@@ -11,6 +11,7 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL before anything imports mujo
 
 # isort: split
 from imitation.calibrate import DEFAULT_BOARD_SPEC
+from peoplebot_sim.viewpoints import VIEWS
 
 RENDERS = pathlib.Path("renders")
 
@@ -245,24 +246,48 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser(
         "demo", help="video of the teacher looping go-pick-lift, with a summary", **defaults
     )
-    demo.add_argument("--seconds", type=_positive_float, default=180.0, help="simulated seconds")
-    demo.add_argument("--width", type=_positive_int, default=640, help="video width, pixels")
-    demo.add_argument("--height", type=_positive_int, default=480, help="video height, pixels")
-    demo.add_argument("--seed", type=int, default=0, help="the teacher's start and jitter")
     demo.add_argument(
-        "--camera", choices=("showcase", "overhead"), default="showcase", help="the view"
+        "--seconds", type=_positive_float, default=180.0, help="simulated seconds to run"
     )
-    demo.add_argument("--speedup", type=_positive_float, default=2.0, help="playback speed")
+    demo.add_argument(
+        "--width", type=_positive_int, default=640, help="video width, pixels (even, up to 1280)"
+    )
+    demo.add_argument(
+        "--height", type=_positive_int, default=480, help="video height, pixels (even, up to 960)"
+    )
+    demo.add_argument(
+        "--seed", type=int, default=0, help="the environment's seed: teacher start and jitter"
+    )
+    demo.add_argument(
+        "--camera",
+        choices=VIEWS,
+        default="showcase",
+        help="the view: showcase (oblique, the whole arena), follow (behind and above the "
+        "teacher, with a table close-up while it docks) or overhead (a real-time recording "
+        "that peoplebot watch takes)",
+    )
+    demo.add_argument(
+        "--speedup",
+        type=_positive_float,
+        default=2.0,
+        help="playback speed: simulated seconds per second of video",
+    )
     demo.add_argument(
         "--out",
         type=pathlib.Path,
         default=RENDERS / "demo" / "teacher.mp4",
         help="the video; the summary goes beside it as .json",
     )
-    demo.add_argument("--no-video", action="store_true", help="write the JSON summary only")
-    demo.add_argument("--no-shadows", action="store_true", help="render faster, without shadows")
     demo.add_argument(
-        "--mcap", action="store_true", help="also write the episode as a ROS 2 MCAP log"
+        "--no-video", action="store_true", help="write the JSON summary only (much faster)"
+    )
+    demo.add_argument(
+        "--no-shadows", action="store_true", help="render without shadows (faster on the CPU)"
+    )
+    demo.add_argument(
+        "--mcap",
+        action="store_true",
+        help="also write the episode as a ROS 2 MCAP log (<out>.mcap)",
     )
     demo.add_argument("--quiet", action="store_true", help="no progress bar")
     demo.set_defaults(func=_cmd_demo)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import math
 import pathlib
 import time
 
@@ -12,11 +13,14 @@ import imageio.v2 as imageio
 import numpy as np
 from tqdm import tqdm
 
-from imitation.overlay import annotate
+from imitation.overlay import annotate, inset
+from imitation.performance import dock_pose_at
 from imitation.rosbag import EpisodeRecorder
+from imitation.videos import BODY_ONLY_NOTE, DOCKING_RANGE_M
 from peoplebot_sim import cameras, directives
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import load
+from peoplebot_sim.viewpoints import VIEWS, FollowCamera, table_closeup
 from perception import camerainfo
 from perception.arenafile import write_arena
 
@@ -32,7 +36,9 @@ class DemoConfig:
       seconds: simulated seconds.
       width, height: video size in pixels (up to 1280x960).
       seed: the environment's seed (teacher start and jitter).
-      camera: 'showcase' (oblique, whole arena) or 'overhead'.
+      camera: one of ``peoplebot_sim.viewpoints.VIEWS``: 'showcase' (oblique, whole arena),
+        'follow' (behind and above the teacher, a table close-up inset while it docks) or
+        'overhead' (a real-time recording for ``peoplebot watch``).
       speedup: playback speed; the video runs at ``speedup / control_timestep`` frames/s.
       video: write the mp4 (False: the summary alone, much faster).
       shadows: render shadows in the video.
@@ -62,8 +68,8 @@ class DemoConfig:
             or not 0 <= self.seed < 2**32
         ):
             raise ValueError(f"seed must be an integer in [0, 2**32), got {self.seed!r}")
-        if self.camera not in ("showcase", "overhead"):
-            raise ValueError(f"unknown camera {self.camera!r}; allowed: showcase, overhead")
+        if self.camera not in VIEWS:
+            raise ValueError(f"unknown camera {self.camera!r}; allowed: {', '.join(VIEWS)}")
         if not (np.isfinite(self.speedup) and self.speedup > 0):
             raise ValueError(f"speedup must be positive, got {self.speedup!r}")
         for name in ("width", "height"):
@@ -89,13 +95,20 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
     action = np.zeros(env.action_spec().shape)
     counts = np.zeros(len(directives.WORDS), int)
     start = time.perf_counter()
-    renderer = writer = bag = bag_renderer = None
+    renderer = writer = bag = bag_renderer = closeup_renderer = None
+    follow = FollowCamera() if config.camera == "follow" else None
+    dock = dock_pose_at("top", task.geometry, task.config.teacher)
     finished = False
     try:
         if config.video:
             renderer = FrameRenderer(
                 env.physics, config.width, config.height, shadows=config.shadows, antialias=True
             )
+            if follow is not None:
+                closeup = table_closeup(task.geometry)
+                closeup_renderer = FrameRenderer(
+                    env.physics, 2 * (config.width // 6), 2 * (config.height // 6), antialias=True
+                )
             writer = imageio.get_writer(
                 str(out_path),
                 # An overhead recording plays in real time, as a camera records it.
@@ -134,7 +147,13 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
                     directive=directive,
                 )
             if writer is not None:
-                frame = renderer.render(camera)
+                if follow is not None:
+                    pose = timestep.observation["teacher_pose"]
+                    frame = renderer.render(follow.update(pose, control_dt))
+                    if math.hypot(pose[0] - dock[0], pose[1] - dock[1]) <= DOCKING_RANGE_M:
+                        frame = inset(frame, closeup_renderer.render(closeup), "table close-up")
+                else:
+                    frame = renderer.render(camera)
                 if recording:
                     writer.append_data(frame)
                     continue
@@ -142,13 +161,18 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
                     f"t = {env.physics.data.time:6.1f} s   cycles "
                     f"{task.teacher_controller.cycles_completed}"
                 )
-                writer.append_data(annotate(frame, word, directive, caption))
+                note = BODY_ONLY_NOTE if word in ("pick", "lift") else ""
+                writer.append_data(
+                    annotate(frame, word, directive, caption, title="teacher", note=note)
+                )
         finished = True
     finally:
         if writer is not None:
             writer.close()
         if renderer is not None:
             renderer.close()
+        if closeup_renderer is not None:
+            closeup_renderer.close()
         if bag is not None:
             bag.close(keep=finished)
             bag_renderer.close()

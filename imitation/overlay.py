@@ -1,11 +1,34 @@
-"""Text drawn on video frames: the current word and motor directive, and a caption."""
+"""Text and pictures drawn on video frames (RGB): the word, the directive, a title and caption, the
+graded motor output, a note line, an inset picture and the verdict at a trial's end. Sizes scale
+with the frame's width and are legible from 640x480 down to 320x240."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
+from associator.encoding import DIRECTIVES
+
 _WORD_COLOURS = {"go": (60, 170, 75), "pick": (230, 140, 30), "lift": (70, 110, 230)}
+_FONT = cv2.FONT_HERSHEY_SIMPLEX
+#: The motor bars' labels, in the associator's directive order.
+_MOTOR_LABELS = {"forward": "fwd", "backward": "back", "turn_right": "right", "turn_left": "left"}
+
+
+def _scale(frame: np.ndarray) -> float:
+    return max(frame.shape[1] / 640.0, 0.5)
+
+
+def _text(out, text, origin, size, colour, thick=1) -> None:
+    cv2.putText(out, text, origin, _FONT, size, colour, thick, cv2.LINE_AA)
+
+
+def _shade(out, x0, y0, x1, y1, alpha=0.65) -> None:
+    """Darkens a rectangle of ``out`` in place (a translucent panel behind text)."""
+    h, w = out.shape[:2]
+    x0, x1, y0, y1 = max(0, x0), min(w, x1), max(0, y0), min(h, y1)
+    if x1 > x0 and y1 > y0:
+        out[y0:y1, x0:x1] = (out[y0:y1, x0:x1] * (1 - alpha) + 15 * alpha).astype(np.uint8)
 
 
 def annotate(
@@ -14,72 +37,116 @@ def annotate(
     directive: str | None,
     caption: str = "",
     motor: np.ndarray | None = None,
+    *,
+    title: str = "",
+    note: str = "",
 ) -> np.ndarray:
-    """Returns a copy of an RGB frame with the word, the directive and an optional caption drawn on
-    it; ``motor`` (4 graded activations, the associator's order) adds a small bar chart."""
+    """Returns a copy of an RGB frame with a top bar (``title`` and ``caption`` on the first line,
+    the word and the directive on the second), ``motor`` (4 graded activations, the associator's
+    directive order) as labelled bars at the bottom left, and ``note`` as a line at the bottom."""
     out = np.ascontiguousarray(frame).copy()
     h, w = out.shape[:2]
-    scale = max(w / 640.0, 0.45)
-    thick = max(1, int(round(2 * scale)))
-    box_h = int(40 * scale) + 6
-    cv2.rectangle(out, (0, 0), (w, box_h), (20, 20, 20), -1)
-    x = int(10 * scale)
-    if word is not None:
-        colour = _WORD_COLOURS.get(word, (255, 255, 255))
-        cv2.putText(
-            out,
-            f"'{word}'",
-            (x, int(30 * scale)),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.9 * scale,
-            colour,
-            thick + 1,
-            cv2.LINE_AA,
-        )
-        x += int(130 * scale)
-    if directive is not None:
-        cv2.putText(
-            out,
-            directive.replace("_", " "),
-            (x, int(30 * scale)),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.8 * scale,
-            (240, 240, 240),
-            thick,
-            cv2.LINE_AA,
-        )
+    s = _scale(out)
+    thick = max(1, int(round(2 * s)))
+    two_rows = bool(title)
+    bar_h = int((62 if two_rows else 40) * s) + 4
+    cv2.rectangle(out, (0, 0), (w, bar_h), (20, 20, 20), -1)
+    x, row2 = int(10 * s), int((54 if two_rows else 30) * s)
+    if title:
+        _text(out, title, (x, int(22 * s)), 0.62 * s, (255, 255, 255), thick if s >= 1 else 1)
     if caption:
-        size = cv2.getTextSize(caption, cv2.FONT_HERSHEY_SIMPLEX, 0.55 * scale, 1)[0]
-        cv2.putText(
-            out,
-            caption,
-            (w - size[0] - int(10 * scale), int(28 * scale)),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.55 * scale,
-            (200, 200, 200),
-            1,
-            cv2.LINE_AA,
-        )
+        size = cv2.getTextSize(caption, _FONT, 0.58 * s, 1)[0]
+        y = int(22 * s) if two_rows else int(28 * s)
+        _text(out, caption, (w - size[0] - int(10 * s), y), 0.58 * s, (215, 215, 215))
+    if word is not None:
+        label = f"'{word}'"
+        _text(out, label, (x, row2), 0.85 * s, _WORD_COLOURS.get(word, (255, 255, 255)), thick + 1)
+        x += cv2.getTextSize(label, _FONT, 0.85 * s, thick + 1)[0][0] + int(18 * s)
+    if directive is not None:
+        _text(out, directive.replace("_", " "), (x, row2), 0.75 * s, (240, 240, 240), thick)
+    right = 0
     if motor is not None:
-        motor = np.clip(np.asarray(motor, dtype=float), 0, None)
-        top = motor.max() if motor.max() > 0 else 1.0
-        labels = ("F", "B", "R", "L")
-        bar_w, bar_h = int(18 * scale), int(50 * scale)
-        x0, y0 = int(10 * scale), h - int(12 * scale)
-        for i, (value, label) in enumerate(zip(motor, labels, strict=True)):
-            left = x0 + i * (bar_w + 6)
-            cv2.rectangle(out, (left, y0 - bar_h), (left + bar_w, y0), (40, 40, 40), 1)
-            cv2.rectangle(
-                out, (left, y0 - int(bar_h * value / top)), (left + bar_w, y0), (240, 200, 40), -1
-            )
-            cv2.putText(
-                out,
-                label,
-                (left + 3, y0 + int(11 * scale)),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.4 * scale,
-                (20, 20, 20),
-                1,
-                cv2.LINE_AA,
-            )
+        right = _motor_bars(out, motor, s)
+    if note:
+        size = cv2.getTextSize(note, _FONT, 0.5 * s, 1)[0]
+        x0 = right + int(8 * s)
+        y1 = h - int(6 * s)
+        _shade(out, x0 - int(4 * s), y1 - size[1] - int(8 * s), x0 + size[0] + int(6 * s), h)
+        _text(out, note, (x0, y1 - int(3 * s)), 0.5 * s, (255, 235, 160))
     return out
+
+
+def _motor_bars(out: np.ndarray, motor, s: float) -> int:
+    """Draws the graded motor activations as bars with their directives' names; returns the
+    panel's right edge (pixels)."""
+    h = out.shape[0]
+    motor = np.clip(np.asarray(motor, dtype=float), 0, None)
+    top = motor.max() if motor.max() > 0 else 1.0
+    bar_w, bar_h, gap = int(30 * s), int(48 * s), int(10 * s)
+    label_h = int(16 * s)
+    x0, y0 = int(10 * s), h - label_h - int(8 * s)
+    right = x0 + len(motor) * (bar_w + gap)
+    _shade(out, 0, y0 - bar_h - int(24 * s), right + int(2 * s), h)
+    _text(out, "motor output", (x0, y0 - bar_h - int(8 * s)), 0.45 * s, (230, 230, 230))
+    for i, (value, name) in enumerate(zip(motor, DIRECTIVES, strict=True)):
+        left = x0 + i * (bar_w + gap)
+        cv2.rectangle(out, (left, y0 - bar_h), (left + bar_w, y0), (90, 90, 90), 1)
+        cv2.rectangle(
+            out, (left, y0 - int(bar_h * value / top)), (left + bar_w, y0), (240, 200, 40), -1
+        )
+        _text(out, _MOTOR_LABELS[name], (left, y0 + label_h - 2), 0.42 * s, (240, 240, 240))
+    return right
+
+
+def inset(frame: np.ndarray, picture: np.ndarray, caption: str = "") -> np.ndarray:
+    """Returns a copy of ``frame`` with ``picture`` (RGB, smaller) at its top right below the top
+    bar, framed in white, with ``caption`` under it."""
+    out = np.ascontiguousarray(frame).copy()
+    h, w = out.shape[:2]
+    s = _scale(out)
+    ph, pw = picture.shape[:2]
+    x1, y0 = w - int(8 * s), int(70 * s)
+    x0, y1 = x1 - pw, y0 + ph
+    if x0 < 0 or y1 > h:
+        raise ValueError(f"an inset of {pw}x{ph} does not fit a {w}x{h} frame")
+    out[y0:y1, x0:x1] = picture
+    cv2.rectangle(out, (x0 - 2, y0 - 2), (x1 + 1, y1 + 1), (255, 255, 255), 2)
+    if caption:
+        _shade(out, x0 - 2, y1 + 2, x1 + 2, y1 + int(20 * s))
+        _text(out, caption, (x0 + 4, y1 + int(15 * s)), 0.45 * s, (255, 255, 255))
+    return out
+
+
+def verdict(frame: np.ndarray, success: bool, reason: str) -> np.ndarray:
+    """Returns a copy of ``frame`` with the trial's verdict in a banner across its middle: SUCCESS
+    (green) or FAILURE (red) and the reason, wrapped to the frame's width."""
+    out = np.ascontiguousarray(frame).copy()
+    h, w = out.shape[:2]
+    s = _scale(out)
+    lines = _wrap(reason, 0.55 * s, w - int(40 * s))
+    line_h = int(24 * s)
+    top = h // 2 - int(40 * s)
+    bottom = top + int(52 * s) + line_h * len(lines)
+    _shade(out, 0, top, w, bottom, alpha=0.75)
+    colour = (90, 220, 100) if success else (240, 80, 70)
+    word = "SUCCESS" if success else "FAILURE"
+    size = cv2.getTextSize(word, _FONT, 1.2 * s, max(2, int(3 * s)))[0]
+    _text(out, word, ((w - size[0]) // 2, top + int(40 * s)), 1.2 * s, colour, max(2, int(3 * s)))
+    for i, line in enumerate(lines):
+        size = cv2.getTextSize(line, _FONT, 0.55 * s, 1)[0]
+        y = top + int(40 * s) + line_h * (i + 1)
+        _text(out, line, ((w - size[0]) // 2, y), 0.55 * s, (240, 240, 240))
+    return out
+
+
+def _wrap(text: str, size: float, width: int) -> list[str]:
+    """Returns ``text`` broken into lines at most ``width`` pixels wide."""
+    lines, line = [], ""
+    for word in text.split():
+        candidate = f"{line} {word}".strip()
+        if line and cv2.getTextSize(candidate, _FONT, size, 1)[0][0] > width:
+            lines.append(line)
+            line = word
+        else:
+            line = candidate
+    return [*lines, line] if line else lines

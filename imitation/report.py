@@ -7,53 +7,19 @@ import pathlib
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402, F401  (imitation.sweep draws with it)
 import numpy as np  # noqa: E402
 
 from associator import figures as network_figures  # noqa: E402
-from imitation import learning, storage  # noqa: E402
-from imitation.performance import FIG4_START  # noqa: E402
+from imitation import learning, storage, tracefigures  # noqa: E402
+from imitation.performance import FIG4_START, POLICIES, dock_pose_at  # noqa: E402
 from imitation.results import PAPER_TABLE_I, Results  # noqa: E402
 from imitation.streams import TeacherStream  # noqa: E402
 from peoplebot_sim import directives  # noqa: E402
-from perception.wallframe import ArenaGeometry, world_to_wall_batch  # noqa: E402
+from perception.wallframe import world_to_wall_batch  # noqa: E402
 
 #: Samples per word for Fig. 7's recognition sums.
 FIG7_SAMPLES = 20_000
-
-
-def fig4_traces(traces: dict, path, start, arena: ArenaGeometry = ArenaGeometry()) -> str:
-    """Fig. 4: the student's traces over the arena, one panel per word, from the same start."""
-    words = ("go", "pick", "lift")
-    h = arena.half_side_m
-    x0, x1, y0, y1 = arena.table_box
-    fig, axes = plt.subplots(1, 3, figsize=(11, 3.9))
-    for ax, word in zip(axes, words, strict=True):
-        ax.add_patch(plt.Rectangle((-h, -h), 2 * h, 2 * h, fill=False, lw=2, color="0.2"))
-        ax.add_patch(plt.Rectangle((x0, y0), x1 - x0, y1 - y0, color="#8b5a2b"))
-        ax.plot([-h, h], [-h, h], "--", color="0.6", lw=0.8)
-        ax.plot([-h, h], [h, -h], "--", color="0.6", lw=0.8)
-        ax.fill([-h, h, 0], [h, h, 0], color="0.9", zorder=0)
-        trace = traces[word]
-        ax.plot(trace[:, 0], trace[:, 1], lw=1.2, color="tab:blue")
-        ax.plot(trace[-1, 0], trace[-1, 1], "s", color="tab:red", ms=5, label="end")
-        ax.annotate(
-            "",
-            xy=(start[0] + 0.35 * np.cos(start[2]), start[1] + 0.35 * np.sin(start[2])),
-            xytext=start[:2],
-            arrowprops={"arrowstyle": "->", "color": "k"},
-        )
-        ax.set_title(f"'{word}'")
-        ax.set_xlim(-h - 0.1, h + 0.1)
-        ax.set_ylim(-h - 0.1, h + 0.1)
-        ax.set_aspect("equal")
-        ax.set_xticks([])
-        ax.set_yticks([])
-    fig.suptitle("Student performing on instruction from the same start (paper's Fig. 4)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return str(path)
 
 
 def figures(config, folder: pathlib.Path, model, encoder) -> dict:
@@ -78,7 +44,21 @@ def figures(config, folder: pathlib.Path, model, encoder) -> dict:
         ),
     }
     traces = dict(np.load(folder / "fig4_traces.npz", allow_pickle=False))
-    paths["fig4"] = saved("fig4_traces.png", lambda p: fig4_traces(traces, p, FIG4_START))
+    if "fig4_student_go" not in traces:  # traces of an earlier version: the paper's network only
+        traces.update({f"fig4_student_{w}": traces[w] for w in directives.WORDS})
+    dock = dock_pose_at("top", teacher=config.teacher)
+    success = config.performance.success
+    tolerance = (success.dock_position_tol_m, success.dock_heading_tol_deg)
+    order = ("teacher", *(p for p in POLICIES if p != "teacher"))
+    paths["fig4"] = saved(
+        "fig4_traces.png",
+        lambda p: tracefigures.fig4_all(traces, p, FIG4_START, order, dock, tolerance),
+    )
+    if any(k.startswith("random_") for k in traces):
+        paths["fig4_random"] = saved(
+            "fig4_random_starts.png",
+            lambda p: tracefigures.fig4_random_starts(traces, p, order, dock, tolerance),
+        )
     stream = TeacherStream.load(folder / "streams" / "test.npz")
     recognition_inputs, performance_inputs = {}, {}
     for i, word in enumerate(directives.WORDS):

@@ -9,10 +9,11 @@ Stages, each checkpointed in the run folder (``state.json``), so an interrupted 
    through the camera, paired with the truth on the same steps.
 4. ``performance``: success rates per word from random starts, student and teacher (reference).
 5. ``figures``: Figs. 3-7 of the paper from the trained network, and Fig. 4's traces.
-6. ``videos``: the student performing each word from the paper's start.
+6. ``videos``: the teacher and each student performing each word from the paper's start, and the
+   three side by side (``imitation.videos``).
 
-The run's configuration is written first, as ``config.toml``; then ``results.json`` and
-``results.md``.
+The run's configuration is written first, as ``config.toml``; then ``results.json``,
+``results.md`` and the report page ``index.html`` (``imitation.page``).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from associator import encoding, persistence
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from imitation import config as run_config
-from imitation import learning, recognition, report, storage, trials
+from imitation import learning, page, recognition, report, storage, trials, videos
 from imitation.config import RunConfig
 from imitation.parallel import run_parallel
 from imitation.results import (
@@ -291,7 +292,9 @@ def run(
             state.finish(stage, result, files, time.perf_counter() - start)
         results = collect(config, state)
         storage.write_json(folder / "results.json", results.to_json())
-        storage.write_text(folder / "results.md", report.markdown(results))
+        results_md = report.markdown(results)
+        storage.write_text(folder / "results.md", results_md)
+        page.write_run_page(folder, results_md, results.figures, results.videos)
         return results
     finally:
         state.close()
@@ -320,8 +323,8 @@ def _run_stage(stage: str, config: RunConfig, folder: pathlib.Path, encoder, cac
     if stage == "figures":
         paths = report.figures(config, folder, model, encoder)
         return paths, [folder / p for p in paths.values()]
-    videos = trials.stage_videos(config, folder)
-    return videos, [folder / name for name in (*videos["videos"], *videos.get("mcap", ()))]
+    filmed = videos.stage_videos(config, folder)
+    return filmed, [folder / name for name in (*filmed["videos"], *filmed.get("mcap", ()))]
 
 
 def _drop_changed_stages(state: RunState) -> None:

@@ -29,12 +29,15 @@ RUN_FILES = (
     "recognised_test.npy",
     "performance_trials.json",
     "fig4_traces.npz",
-    "student_go.mp4",
-    "student_pick.mp4",
-    "student_lift.mp4",
-    "student_go.mcap",
-    "student_pick.mcap",
-    "student_lift.mcap",
+    "index.html",
+    # The videos and their logs (imitation.videos): every policy and word, and side by side.
+    *(
+        f"{policy}_{word}.{ext}"
+        for policy in ("teacher", "student", "student_hierarchical")
+        for word in ("go", "pick", "lift")
+        for ext in ("mp4", "mcap")
+    ),
+    *(f"side_by_side_{word}.mp4" for word in ("go", "pick", "lift")),
 )
 RUN_FOLDERS = ("streams", "figures")
 #: Settings that change how a run is carried out but not its results: a folder resumes with others.

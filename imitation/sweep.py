@@ -31,7 +31,7 @@ import numpy as np
 import ray
 from tqdm import tqdm
 
-from imitation import report, reproduce, storage
+from imitation import page, report, reproduce, storage
 from imitation.config import RunConfig
 from imitation.results import PAPER_TABLE_I, package_versions
 from imitation.runstate import differing_keys
@@ -178,8 +178,12 @@ def sweep(
         _run_on_ray(pending, out, outcomes, address, workers, progress)
     summary = summarise([outcomes[c.name] for c in cells], seeds, settings)
     storage.write_json(out / "sweep.json", summary)
-    storage.write_text(out / "sweep.md", markdown(summary))
-    summary_figures(summary, out / "figures")
+    sweep_md = markdown(summary)
+    storage.write_text(out / "sweep.md", sweep_md)
+    figures = [str(p.relative_to(out)) for p in summary_figures(summary, out / "figures")]
+    storage.write_text(
+        out / "index.html", page.sweep_page(sweep_md, figures, [c.name for c in cells])
+    )
     return summary
 
 

@@ -154,13 +154,17 @@ def _corruptions(path: pathlib.Path):
 
 
 def test_every_file_damaged_is_recovered_or_refused_in_one_line(reference, tmp_path, capsys):
-    """Each file of a finished run folder, truncated, emptied or with bytes flipped (every file in
-    every way): the rerun ends with the reference results, or stops with one line and exit status
-    2, and then ``--fresh`` recovers."""
+    """Each file of a finished run folder (of the videos, each policy's 'go'), truncated, emptied
+    or with bytes flipped (every file in every way): the rerun ends with the reference results,
+    or stops with one line and exit status 2, and then ``--fresh`` recovers."""
+    # The videos are one kind of file per policy: the 'go' ones stand for the other words (each
+    # damaged video reruns the whole video stage).
     files = sorted(
         p.relative_to(reference)
         for p in reference.rglob("*")
-        if p.is_file() and p.name != "run.lock"
+        if p.is_file()
+        and p.name != "run.lock"
+        and not (p.suffix == ".mp4" and not p.stem.endswith("_go"))
     )
     assert len(files) >= 17, files
     outcomes = {}

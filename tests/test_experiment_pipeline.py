@@ -21,7 +21,7 @@ import pytest
 
 from associator import persistence
 from imitation import config as run_config
-from imitation import performance, reproduce, trials
+from imitation import performance, reproduce, trials, videos
 from imitation.cli import main
 from imitation.config import RunConfig
 from imitation.reproduce import STAGES
@@ -206,7 +206,7 @@ def test_results_md_has_the_tables(run_folder):
 
 def test_figures_are_valid_images(run_folder):
     folder, results = run_folder
-    names = {"fig3", "fig4", "fig5", "fig6", "fig7"}
+    names = {"fig3", "fig4", "fig4_random", "fig5", "fig6", "fig7"}
     assert set(results["figures"]) == names
     for name, relative in results["figures"].items():
         path = folder / relative
@@ -218,6 +218,8 @@ def test_figures_are_valid_images(run_folder):
 
 
 def test_fig4_traces(run_folder):
+    """The paper's network's traces under their old keys, and every policy's from the paper's
+    start and from the trials' first random starts (one per row here)."""
     folder, _ = run_folder
     with np.load(folder / "fig4_traces.npz") as traces:
         for word in WORDS:
@@ -225,23 +227,61 @@ def test_fig4_traces(run_folder):
             assert trace.shape == (FRAMES, 3) and np.all(np.isfinite(trace))
             np.testing.assert_allclose(trace[0, :2], performance.FIG4_START[:2], atol=0.05)
             assert traces[f"{word}_directives"].shape == (FRAMES,)
+            for policy in videos.video_policies(tiny_config()):
+                np.testing.assert_array_equal(
+                    traces[f"fig4_{policy}_{word}"][0, :2].round(1), trace[0, :2].round(1)
+                )
+                assert traces[f"random_{policy}_{word}"].shape == (1, FRAMES, 3)
+                assert traces[f"random_{policy}_{word}_success"].shape == (1,)
+        np.testing.assert_array_equal(traces["fig4_student_go"], traces["go"])
 
 
-def test_videos_play_with_one_frame_per_step(run_folder):
+def test_videos_have_their_size_rate_and_length(run_folder):
+    """Every policy's video of every word and the side-by-side ones: 320 x 240 (side by side:
+    one panel per policy), 20 frames/s (2x real time), one frame per control step and the held
+    verdict; the side-by-side panels are the policies' own videos, frame for frame."""
     folder, results = run_folder
-    assert results["videos"] == [f"student_{w}.mp4" for w in sorted(WORDS)]
+    policies = videos.video_policies(tiny_config())
+    assert policies == ("teacher", "student", "student_hierarchical")
+    expected = [videos.video_name(p, w) for p in policies for w in WORDS]
+    expected += [videos.side_by_side_name(w) for w in WORDS]
+    assert results["videos"] == sorted(expected)
+    length = FRAMES + int(round(videos.HOLD_S / 0.1))
     for word in WORDS:
-        with imageio.get_reader(folder / f"student_{word}.mp4") as reader:
-            frames = [frame for frame in reader]
-        assert len(frames) == FRAMES, word
-        assert frames[0].shape == (240, 320, 3)
-        # The caption's clock changes from frame to frame.
-        assert np.abs(frames[0].astype(int) - frames[-1]).mean() > 0.1
+        own = {}
+        for policy in policies:
+            with imageio.get_reader(folder / videos.video_name(policy, word)) as reader:
+                assert reader.get_meta_data()["fps"] == 20.0
+                own[policy] = [frame for frame in reader]
+            assert len(own[policy]) == length, (policy, word)
+            assert own[policy][0].shape == (240, 320, 3)
+            # The caption's clock changes from frame to frame.
+            assert np.abs(own[policy][0].astype(int) - own[policy][-1]).mean() > 0.1
+        with imageio.get_reader(folder / videos.side_by_side_name(word)) as reader:
+            side = [frame for frame in reader]
+        assert len(side) == length and side[0].shape == (240, 320 * len(policies), 3)
+        for k, policy in enumerate(policies):
+            panel = side[0][:, 320 * k : 320 * (k + 1)].astype(int)
+            assert np.abs(panel - own[policy][0]).mean() < 6, (word, policy)
+
+
+def test_every_video_starts_from_the_paper_start(run_folder):
+    """The side-by-side panels come from the same start: every policy's run from the paper's
+    start begins at ``FIG4_START``, and the verdict of each is recorded with its reason."""
+    folder, _ = run_folder
+    with np.load(folder / "fig4_traces.npz") as traces:
+        for policy in videos.video_policies(tiny_config()):
+            for word in WORDS:
+                first = traces[f"fig4_{policy}_{word}"][0]
+                np.testing.assert_allclose(first[:2], performance.FIG4_START[:2], atol=0.05)
+    state = json.loads((folder / "state.json").read_text())
+    verdicts = state["stages"]["videos"]["verdicts"]
+    assert len(verdicts) == 9 and all(isinstance(v["reason"], str) for v in verdicts)
 
 
 def test_student_episodes_are_logged_as_mcap(run_folder):
-    """Beside each student video, its episode as a ROS 2 log: one message per frame on the wheel
-    command, odometry and camera topics."""
+    """Beside each video, its episode as a ROS 2 log: one message per simulated step on the
+    wheel command, odometry and camera topics."""
     from mcap.reader import make_reader
 
     folder, results = run_folder
@@ -479,3 +519,19 @@ def test_reuse_from_takes_the_networks_for_a_camera_run(run_folder, tmp_path):
         reproduce.run(config, tmp_path / "other", reuse_from=damaged)
     with pytest.raises(ValueError, match=r"other seed"):
         reproduce.run(config.replace({"seed": 3}), tmp_path / "third", reuse_from=folder)
+
+
+def test_the_run_page_loads_in_a_real_browser(run_folder, tmp_path):
+    """``index.html`` in headless Chromium: every figure and video of the run loads, the results
+    tables are there; a screenshot is saved (skipped where no Chromium is installed)."""
+    import browser
+
+    folder, results = run_folder
+    browser.chromium()
+    dom = browser.loaded_dom(folder / "index.html")
+    states = browser.load_states(dom)
+    assert set(states) == set(results["videos"]) | set(results["figures"].values())
+    assert set(states.values()) == {"1"}, states
+    assert dom.count("<table>") >= 5 and "Performance on instruction" in dom
+    shot = imageio.imread(browser.screenshot(folder / "index.html", tmp_path / "index.png"))
+    assert shot.std() > 5
