@@ -143,8 +143,9 @@ def make_action(spec, drive_command, head_command=(0.0, 0.0)) -> np.ndarray:
 
 class TeacherAgent:
     """The teacher's controller performing one word on the student's robot: the reference row. It
-    reads the true pose (the teacher is a scripted demonstrator, not a learner); once its behaviour
-    is done it stands still (directive None), as a real robot would."""
+    reads the true pose (the teacher is a scripted demonstrator, not a learner) and performs
+    undisturbed (``TeacherConfig.undisturbed``); once its behaviour is done it stands still
+    (directive None), as a real robot would."""
 
     def __init__(
         self,
@@ -162,7 +163,7 @@ class TeacherAgent:
             arena,
             rng,
         )
-        self.teacher_config = teacher_config
+        self.teacher_config = teacher_config.undisturbed()
         self.reset()
 
     def reset(self, timestep=None, start_pose=None) -> None:

@@ -220,7 +220,7 @@ class StreamGenerator:
         for i in range(n_steps):
             pose = self.teacher_pose()
             name = teacher.step(pose, self._student, self._dt)
-            linear, turn = self._commands[name]
+            linear, turn = self._commands[teacher.executed]  # the wheels: a disturbance's turn
             ctrl[self._forward] = linear
             ctrl[self._turn] = turn
             wall = world_to_wall(pose[0], pose[1], pose[2], geometry)

@@ -387,7 +387,8 @@ class ImitationTask(composer.Task):
             self._teacher.planar_pose(physics), student, self.config.control_timestep
         )
         self._actuator_ids(physics)
-        physics.data.ctrl[list(self._teacher_ids)] = self.config.drive.command(directive)
+        executed = self.teacher_controller.executed  # the wheels: a disturbance's turn, if any
+        physics.data.ctrl[list(self._teacher_ids)] = self.config.drive.command(executed)
         self._last_directive = directive
         return directive
 

@@ -12,6 +12,13 @@ simulator: it is the demonstrator, not a learner.
   table in front of the object.
 - 'lift' backs away from the table, then turns to face the middle of the arena; then 'go' again.
 
+Disturbances (``slip_rate_per_s``): now and then the robot's wheels do something other than the
+teacher commands for a while (an unwanted turn, or rolling on when it should turn), as a real
+robot's do; the teacher's commands, which the student is given, stay those of its controller at the
+true pose, so the demonstrations also show how to recover from where a disturbance leaves it: the
+demonstrator noise of DART (Laskey et al., 2017). ``directive`` is what the teacher commands,
+``executed`` what its wheels do.
+
 A watchdog ends any behaviour that makes no progress (no movement while driving, or a behaviour that
 lasts too long), logs it and recovers by backing off and turning away in 'go'.
 """
@@ -50,6 +57,11 @@ class TeacherConfig:
       settle_pattern: the docked robot's final alignment, small turns in place that cancel out.
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
+      slip_rate_per_s: disturbances per second of each behaviour (a Poisson rate; 0: none). In
+        'pick' (while it lines up, faces the table or drives in, not while it settles) a
+        disturbance is a turn; in 'go' a turn or rolling forward.
+      slip_seconds: a disturbance's turn lasts a time drawn uniformly from this (min, max) range;
+        rolling forward at most ``slip_forward_max_s``; its kind is drawn evenly.
       stuck_seconds, stuck_distance_m: the watchdog fires when a robot commanded to drive moves less
         than ``stuck_distance_m`` in ``stuck_seconds``.
       max_seconds: the watchdog also fires when one behaviour lasts longer than this.
@@ -78,6 +90,11 @@ class TeacherConfig:
     max_seconds: dict = dataclasses.field(
         default_factory=lambda: {"go": 900.0, "pick": 60.0, "lift": 30.0}
     )
+    slip_rate_per_s: dict = dataclasses.field(
+        default_factory=lambda: {"go": 0.0, "pick": 0.15, "lift": 0.0}
+    )
+    slip_seconds: tuple = (0.5, 2.0)
+    slip_forward_max_s: float = 1.0
 
     def __post_init__(self):
         for field in dataclasses.fields(self):
@@ -86,6 +103,25 @@ class TeacherConfig:
                 raise ValueError(
                     f"teacher.{field.name} must be a finite number >= 0, got {value!r}"
                 )
+        low_high = self.slip_seconds
+        if not (
+            isinstance(low_high, (tuple, list))
+            and len(low_high) == 2
+            and all(isinstance(v, (int, float)) and math.isfinite(v) for v in low_high)
+            and 0 < low_high[0] <= low_high[1]
+        ):
+            raise ValueError(
+                f"teacher.slip_seconds must be (min, max) seconds with 0 < min <= max, got "
+                f"{low_high!r}"
+            )
+        rates = self.slip_rate_per_s
+        if not isinstance(rates, dict) or set(rates) != {"go", "pick", "lift"} or not all(
+            isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 for v in rates.values()
+        ):
+            raise ValueError(
+                "teacher.slip_rate_per_s must give a rate >= 0 per second for go, pick and lift, "
+                f"got {rates!r}"
+            )
         unknown = [d for d in self.settle_pattern if d not in DIRECTIVES]
         if unknown:
             raise ValueError(
@@ -99,6 +135,12 @@ class TeacherConfig:
                 "teacher.max_seconds must give a positive number of seconds for go, pick and "
                 f"lift, got {self.max_seconds!r}"
             )
+
+
+    def undisturbed(self) -> TeacherConfig:
+        """Returns these settings without disturbances: the controller alone, as the reference
+        row performs."""
+        return dataclasses.replace(self, slip_rate_per_s={"go": 0.0, "pick": 0.0, "lift": 0.0})
 
 
 @dataclasses.dataclass(frozen=True)
@@ -139,6 +181,9 @@ class Teacher:
         self.finished = False
         self.word = "go"
         self.directive = "forward"
+        self.executed = "forward"
+        self._slip_steps = 0
+        self._slip_directive = "forward"
         self.time_s = 0.0
         self.cycles_completed = 0
         self.events: list[WatchdogEvent] = []
@@ -161,6 +206,9 @@ class Teacher:
         "_turn_sign",
         "_turn_target_deg",
         "_obstacle_bearing",
+        "executed",
+        "_slip_steps",
+        "_slip_directive",
     )
 
     def get_state(self) -> dict:
@@ -263,7 +311,28 @@ class Teacher:
             return self.directive  # a single finished behaviour holds its last directive
         handler = {"go": self._go, "pick": self._pick, "lift": self._lift}[self.word]
         self.directive = handler(x, y, yaw, student_pose)
+        self.executed = self._disturbed(self.directive, dt)
         return self.directive
+
+    def _disturbed(self, directive: str, dt: float) -> str:
+        """Returns what the wheels do for the commanded ``directive``: a disturbance's while one
+        lasts, else the directive."""
+        c = self.config
+        rate = c.slip_rate_per_s[self.word]
+        if rate <= 0 or self.phase in ("settle", "done", "backoff"):
+            self._slip_steps = 0
+            return directive
+        if self._slip_steps == 0 and self._rng.random() < 1.0 - math.exp(-rate * dt):
+            kinds = ["turn_left", "turn_right"] + (["forward"] if self.word == "go" else [])
+            self._slip_directive = str(self._rng.choice(kinds))
+            seconds = self._rng.uniform(*c.slip_seconds)
+            if self._slip_directive == "forward":
+                seconds = min(seconds, c.slip_forward_max_s)
+            self._slip_steps = max(1, int(round(seconds / dt)))
+        if self._slip_steps == 0:
+            return directive
+        self._slip_steps -= 1
+        return self._slip_directive
 
     def _escape_direction(self, x, y, student) -> float:
         """Returns the heading (rad) pointing away from the nearby obstacles, each weighted by how
@@ -392,7 +461,7 @@ class Teacher:
         reason = None
         if elapsed > c.max_seconds[self.word]:
             reason = f"'{self.word}' lasted over {c.max_seconds[self.word]:.0f} s"
-        elif self.directive in ("forward", "backward"):
+        elif self.directive in ("forward", "backward") and self.executed == self.directive:
             if self._progress_anchor is None:
                 self._progress_anchor = (self.time_s, x, y)
             else:

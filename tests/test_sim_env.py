@@ -20,6 +20,7 @@ from imitation import performance
 from imitation.streams import StreamGenerator
 from peoplebot_sim import assets, cameras, directives, entities, task
 from peoplebot_sim.rendering import FrameRenderer
+from peoplebot_sim.teacher import TeacherConfig
 from perception import layout
 from perception.markers import DetectorConfig
 from perception.pantilt import head_camera
@@ -313,6 +314,46 @@ def test_teacher_completes_cycles_from_random_starts_without_watchdog_events(see
     assert teacher.events == []
     # Every word was performed.
     assert set(stream.word.tolist()) == {0, 1, 2}
+
+
+def test_disturbances_turn_the_wheels_while_the_commands_stay_the_controllers():
+    """With disturbances, the wheels sometimes turn while the teacher commands something else (only
+    in 'pick', never while it settles), at about the configured rate; the stream records the
+    commands. Undisturbed (``TeacherConfig.undisturbed``), what is executed is what is
+    commanded, and a stream of it is the one of a controller without the feature."""
+    config = task.TaskConfig()
+    rates = config.teacher.slip_rate_per_s
+    assert rates["pick"] > 0 and rates["lift"] == 0
+    generator = StreamGenerator(7, config)
+    teacher = generator.task.teacher_controller
+    commanded, executed, phases, words = [], [], [], []
+    for _ in range(6000):
+        stream = generator.generate(1)
+        commanded.append(directives.DIRECTIVES[stream.directive[0]])
+        executed.append(teacher.executed)
+        phases.append(teacher.phase)
+        words.append(teacher.word)
+    commanded, executed = np.array(commanded), np.array(executed)
+    phases, words = np.array(phases), np.array(words)
+    differ = commanded != executed
+    assert differ.any() and teacher.events == []
+    assert set(words[differ]) == {"pick"} and "settle" not in set(phases[differ])
+    assert set(executed[differ]) <= {"turn_left", "turn_right"}
+    # Disturbances begin at about the rate per second of 'pick' outside its settling.
+    starts = differ & ~np.concatenate([[False], differ[:-1]])
+    exposed = ((words == "pick") & (phases != "settle")).sum() * 0.1
+    assert 0.4 * rates["pick"] < starts.sum() / exposed < 1.6 * rates["pick"]
+    quiet = task.TaskConfig(teacher=config.teacher.undisturbed())
+    generator = StreamGenerator(7, quiet)
+    for _ in range(3000):
+        generator.generate(1)
+        assert generator.task.teacher_controller.executed == (
+            generator.task.teacher_controller.directive
+        )
+    with pytest.raises(ValueError, match="slip_rate_per_s"):
+        TeacherConfig(slip_rate_per_s={"go": -1.0, "pick": 0.0, "lift": 0.0})
+    with pytest.raises(ValueError, match="slip_seconds"):
+        TeacherConfig(slip_seconds=(2.0, 1.0))
 
 
 class _SubstepContactTask(task.ImitationTask):
