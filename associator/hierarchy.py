@@ -36,6 +36,8 @@ OWN_PARAMS = (
     "pose_weight",
     "pose_width_floor",
     "min_word_samples",
+    "unit_transition_prior",
+    "pose_evidence",
 )
 
 #: The word layer's pose and motor statistics (``count_word_statistics``), counted with the lower
@@ -47,6 +49,7 @@ _LEARNED = (
     "lower_",
     "word_links_",
     "word_transitions_",
+    "word_unit_transitions_",
     "transition_keys_",
     "transition_counts_",
     "last_word_",
@@ -142,6 +145,14 @@ class HierarchicalAssociator:
     min_word_samples : int
         Components counted fewer times than this under their word do not compete in performance
         (default 20).
+    unit_transition_prior : float
+        Recognition over time takes the word transitions where they happened,
+        ``p(word_t | word_(t-1), k_(t-1))``, counted per previous lower winner and backed off to
+        ``p(word_t | word_(t-1))`` with this weight, in samples (default 10).
+    pose_evidence : float
+        Once ``count_word_statistics`` has counted, recognition over time also weighs how well the
+        pose fits each word's component at the winner: its evidence is multiplied by
+        ``N(pose | word, k) ** pose_evidence`` (default 0.1).
     """
 
     def __init__(
@@ -156,6 +167,8 @@ class HierarchicalAssociator:
         pose_weight: float = 0.03,
         pose_width_floor: float = 0.5,
         min_word_samples: int = 20,
+        unit_transition_prior: float = 10.0,
+        pose_evidence: float = 0.1,
     ):
         self.lower = lower
         self.motor_gain = motor_gain
@@ -166,6 +179,8 @@ class HierarchicalAssociator:
         self.pose_weight = pose_weight
         self.pose_width_floor = pose_width_floor
         self.min_word_samples = min_word_samples
+        self.unit_transition_prior = unit_transition_prior
+        self.pose_evidence = pose_evidence
 
     def _lower_estimator(self) -> Associator:
         """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
@@ -197,6 +212,8 @@ class HierarchicalAssociator:
             pose_weight=float(self.pose_weight),
             pose_width_floor=float(self.pose_width_floor),
             min_word_samples=int(self.min_word_samples),
+            unit_transition_prior=float(self.unit_transition_prior),
+            pose_evidence=float(self.pose_evidence),
         )
         return params
 
@@ -250,9 +267,15 @@ class HierarchicalAssociator:
             self.lower_ = self._fresh_lower()
             self.word_links_ = np.zeros((n_words, self.lower_.n_hidden))
             self.word_transitions_ = np.zeros((n_words, n_words))
+            self.word_unit_transitions_ = np.zeros((self.lower_.n_hidden, n_words, n_words))
             self.transition_keys_ = np.zeros(0, np.int64)
             self.transition_counts_ = np.zeros(0)
             self.last_word_, self.last_winner_ = -1, -1
+        if not hasattr(self, "word_unit_transitions_"):
+            raise ValueError(
+                "this network was saved before the word transitions per lower winner were "
+                "counted: it recognises and performs, but cannot learn on; fit it anew"
+            )
         if n == 0:
             return self
         for name in _WORD_STATISTICS:  # counted on the lower level as it was: now stale
@@ -267,6 +290,11 @@ class HierarchicalAssociator:
         previous_winners = np.concatenate([[self.last_winner_], winners[:-1]])
         known = previous_words >= 0
         np.add.at(self.word_transitions_, (previous_words[known], words[known]), 1.0)
+        np.add.at(
+            self.word_unit_transitions_,
+            (previous_winners[known], previous_words[known], words[known]),
+            1.0,
+        )
         self._count_transitions(
             self._transition_key(words[known], previous_winners[known], winners[known])
         )
@@ -349,11 +377,12 @@ class HierarchicalAssociator:
         """Whether ``count_word_statistics`` has counted since the lower level last learned."""
         return hasattr(self, "word_samples_")
 
-    def _pose_log_likelihoods(self, vision: np.ndarray, word_index: np.ndarray) -> np.ndarray:
-        """Returns (n, n_hidden): the log-likelihood of each sample's pose under each word-and-
-        winner component (a Gaussian with the counted mean and spread, each spread at least
-        ``pose_width_floor`` units, the heading's circular), plus the log of its sample count;
-        -inf for components with fewer than ``min_word_samples`` samples."""
+    def _pose_components(self):
+        """Returns the word-and-winner pose components (n_words, n_hidden): x and y means (..., 2)
+        and spreads (..., 2), the heading's mean and spread, all in units of the vision code (each
+        spread at least ``pose_width_floor``, the heading's circular), and the log of each
+        component's normaliser; components with fewer than ``min_word_samples`` samples have a
+        normaliser of -inf."""
         samples = self.word_samples_
         safe = np.maximum(samples, 1.0)
         mean = self.word_pose_sums_ / safe[..., None]
@@ -364,8 +393,35 @@ class HierarchicalAssociator:
         to_units = N_PHI / (2 * np.pi)
         sd_phi = np.maximum(np.sqrt(-2.0 * np.log(resultant)) * to_units, floor)
         mean_phi = np.arctan2(mean[..., 3], mean[..., 2]) * to_units
-        norm = np.log(safe) - np.log(sd_xy[..., 0] * sd_xy[..., 1] * sd_phi)
-        norm = np.where(samples >= self.min_word_samples, norm, -np.inf)
+        log_norm = -np.log(sd_xy[..., 0] * sd_xy[..., 1] * sd_phi)
+        log_norm = np.where(samples >= self.min_word_samples, log_norm, -np.inf)
+        return mean[..., :2], sd_xy, mean_phi, sd_phi, log_norm
+
+    def _pose_fit_at_winners(self, vision: np.ndarray, winners: np.ndarray) -> np.ndarray:
+        """Returns (n, n_words): the Gaussian log-likelihood of each sample's pose under each
+        word's component at the sample's winner; components counted fewer than
+        ``min_word_samples`` times take the best of the others (no evidence either way)."""
+        mean, sd_xy, mean_phi, sd_phi, log_norm = self._pose_components()
+        centres = encoding.vision_code_centres(vision)
+        half = N_PHI / 2
+        k = winners
+        dphi = (centres[None, :, 2] - mean_phi[:, k] + half) % N_PHI - half
+        squared = (
+            ((centres[None, :, 0] - mean[:, k, 0]) / sd_xy[:, k, 0]) ** 2
+            + ((centres[None, :, 1] - mean[:, k, 1]) / sd_xy[:, k, 1]) ** 2
+            + (dphi / sd_phi[:, k]) ** 2
+        )
+        fit = (log_norm[:, k] - 0.5 * squared).T
+        best = np.max(np.where(np.isfinite(fit), fit, -np.inf), axis=1, keepdims=True)
+        best = np.where(np.isfinite(best), best, 0.0)
+        return np.where(np.isfinite(fit), fit, best)
+
+    def _pose_log_likelihoods(self, vision: np.ndarray, word_index: np.ndarray) -> np.ndarray:
+        """Returns (n, n_hidden): the log-likelihood of each sample's pose under each word-and-
+        winner component (``_pose_components``), plus the log of its sample count; -inf for
+        components with fewer than ``min_word_samples`` samples."""
+        mean, sd_xy, mean_phi, sd_phi, log_norm = self._pose_components()
+        norm = np.log(np.maximum(self.word_samples_, 1.0)) + log_norm
         centres = encoding.vision_code_centres(vision)
         w = word_index
         half = N_PHI / 2
@@ -396,6 +452,20 @@ class HierarchicalAssociator:
         self._check_fitted()
         counts = self.word_transitions_ + self.word_transition_floor
         return counts / counts.sum(axis=1, keepdims=True)
+
+    def _word_transitions_after(self, previous: np.ndarray) -> np.ndarray:
+        """Returns ``p(word_t | word_(t-1), k_(t-1))`` for previous winners ``previous`` (n,),
+        shape (n, n_words, n_words): the word transitions counted after each winner, backed off to
+        ``p(word_t | word_(t-1))``; where ``previous`` is -1 (not seen), or for a network without
+        the counts (files written before them), ``p(word_t | word_(t-1))`` alone."""
+        overall = self.word_transition_probabilities_()
+        out = np.broadcast_to(overall, (len(previous), *overall.shape)).copy()
+        known = previous >= 0
+        if hasattr(self, "word_unit_transitions_") and np.any(known):
+            counts = self.word_unit_transitions_[previous[known]]
+            prior = float(self.unit_transition_prior)
+            out[known] = (counts + prior * overall) / (counts.sum(axis=2, keepdims=True) + prior)
+        return out
 
     def _lower_winners(self, vision, motor, motor_weight: float) -> np.ndarray:
         """Returns the lower winners of vision (n, 96) and motor (n, 4) codes, language silent,
@@ -448,8 +518,10 @@ class HierarchicalAssociator:
         state: SequenceState | None = None,
     ) -> SequenceRecognition:
         """Recognises ``n`` consecutive samples over time: a belief over the words carried from
-        step to step, a causal forward filter through ``p(word_t | word_(t-1))`` and the evidence
-        ``p(k_t | k_(t-1), word)`` of the lower winners (backed off to ``p(k_t | word)``).
+        step to step, a causal forward filter through ``p(word_t | word_(t-1), k_(t-1))`` (backed
+        off to ``p(word_t | word_(t-1))``) and the evidence ``p(k_t | k_(t-1), word)`` of the lower
+        winners (backed off to ``p(k_t | word)``), times ``N(pose_t | word, k_t) **
+        pose_evidence`` once the word statistics are counted.
 
         Args:
           vision, motor: (m, 96) and (m, 4) codes of the samples that were seen, in order.
@@ -474,14 +546,19 @@ class HierarchicalAssociator:
         previous = np.concatenate([[state.last_winner], winners[:-1]])
         evidence = np.ones((len(seen), n_words))
         evidence[seen] = self._sequence_evidence(previous[seen], winners_seen)
-        transitions = self.word_transition_probabilities_()
+        if self.has_word_statistics_ and m:  # how well each word's component fits the pose
+            fit = self._pose_fit_at_winners(np.asarray(vision, float), winners_seen)
+            evidence[seen] *= np.exp(self.pose_evidence * (fit - fit.max(axis=1, keepdims=True)))
+        # Where the words changed: the transitions after the previous step's winner (not seen,
+        # or the step before a gap: the overall ones).
+        transitions = self._word_transitions_after(previous)
         beliefs = np.empty((len(seen), n_words))
         belief = state.posterior
         # The forward filter, one step at a time. Every transition probability and every
         # evidence value is positive (the floors and the prior are validated positive), so the
         # product never sums to zero.
         for t, e in enumerate(evidence):
-            belief = (belief @ transitions) * e
+            belief = (belief @ transitions[t]) * e
             belief /= belief.sum()
             beliefs[t] = belief
         last = int(winners[-1]) if len(seen) else state.last_winner

@@ -12,7 +12,9 @@ File layout (format version 1), every entry a plain numpy array:
 A :class:`~associator.hierarchy.HierarchicalAssociator` is stored the same way with ``format``
 ``"hierarchical_associator"``: the entries above hold its lower network, and these its own state:
 ``hierarchy_params`` (JSON of its own hyper-parameters, ``hierarchy.OWN_PARAMS``), ``word_links``
-(n_words, n_hidden), ``word_transitions`` (n_words, n_words), the sparse lower-winner transitions
+(n_words, n_hidden), ``word_transitions`` (n_words, n_words), ``word_unit_transitions`` (n_hidden,
+n_words, n_words: the word transitions per previous lower winner; absent from files written before
+it), the sparse lower-winner transitions
 ``transition_keys`` (m,) int64 (index in a flattened (n_words, n_hidden, n_hidden) table, strictly
 increasing) and ``transition_counts`` (m,), and ``last_sample`` ([word, winner] of the last
 training sample, -1 before any), so that training resumes exactly; optionally the word statistics
@@ -91,6 +93,8 @@ def save(model, path, metadata: dict | None = None) -> str:
             "transition_counts": np.asarray(model.transition_counts_, dtype=float),
             "last_sample": np.array([model.last_word_, model.last_winner_], dtype=np.int64),
         }
+        if hasattr(model, "word_unit_transitions_"):  # networks loaded from older files lack it
+            extra["word_unit_transitions"] = np.asarray(model.word_unit_transitions_, dtype=float)
         if model.has_word_statistics_:
             extra.update(
                 {key: np.asarray(getattr(model, attr), dtype=float) for key, attr in _STATISTICS}
@@ -148,6 +152,8 @@ def _read(path):
             if present and len(present) != len(_STATISTICS):
                 _fail(path, f"word statistics incomplete: has only {present}")
             data.update({key: archive[key] for key in present})
+            if "word_unit_transitions" in archive.files:  # files written before it lack it
+                data["word_unit_transitions"] = archive["word_unit_transitions"]
     except ValueError as error:
         if "not a valid associator file" in str(error):
             raise
@@ -253,6 +259,20 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
     model.transition_keys_ = np.array(keys)
     model.transition_counts_ = np.array(counts, dtype=float)
     model.last_word_, model.last_winner_ = int(last[0]), int(last[1])
+    if "word_unit_transitions" in data:
+        after = data["word_unit_transitions"]
+        if after.shape != (n_hidden, n_words, n_words):
+            _fail(
+                path,
+                f"word_unit_transitions has shape {after.shape}, expected "
+                f"({n_hidden}, {n_words}, {n_words})",
+            )
+        if not np.all(np.isfinite(after)) or np.any(after < 0):
+            _fail(path, "word_unit_transitions has negative or non-finite values")
+        _whole(path, "word_unit_transitions", after)
+        if not np.array_equal(after.sum(axis=0), words):
+            _fail(path, "word_unit_transitions do not add up to word_transitions")
+        model.word_unit_transitions_ = np.array(after, dtype=float)
     if _STATISTICS[0][0] in data:
         _word_statistics(path, model, data)
     return model

@@ -118,6 +118,94 @@ def test_transitions_count_each_consecutive_pair(learned):
     assert model.last_word_ == words[-1]
 
 
+def test_word_transitions_are_counted_per_previous_winner(learned, tmp_path):
+    """Each pair of consecutive samples adds one to the word transition after the earlier sample's
+    wake winner; over the winners they add up to the word transitions. Recognition over time
+    takes them, backed off to p(word_t | word_(t-1)): a prior of 1e12 gives the read-out without
+    them, as does a file written before them (it loads, recognises, and refuses to learn on)."""
+    model, _, _, (vision, _, motor, _) = learned
+    train = synthetic.encode_stream(synthetic.teacher_stream(N_LEARN, rng=1))
+    lower = Associator(**PARAMS)
+    winners = lower.learn_inputs(_lower_input(train[0], train[2], model.motor_gain), train[3])
+    words = synthetic.teacher_stream(N_LEARN, rng=1).word
+    expected = np.zeros((lower.n_hidden, 3, 3))
+    np.add.at(expected, (winners[:-1], words[:-1], words[1:]), 1.0)
+    np.testing.assert_array_equal(model.word_unit_transitions_, expected)
+    np.testing.assert_array_equal(model.word_unit_transitions_.sum(axis=0), model.word_transitions_)
+    # Where the words change depends on where the robot is: some winners are left into 'pick'
+    # more often than from anywhere on average.
+    after = model._word_transitions_after(np.arange(lower.n_hidden))
+    overall = model.word_transition_probabilities_()
+    assert after[:, 0, 1].max() > 3 * overall[0, 1]
+    with_units = model.recognise_sequence(vision, motor)
+    flat = copy.deepcopy(model)
+    flat.unit_transition_prior = 1e12
+    without = flat.recognise_sequence(vision, motor)
+    assert not np.allclose(with_units.scores, without.scores)
+    path = persistence.save(model, tmp_path / "h.npz")
+    with np.load(path) as archive:
+        entries = {k: archive[k] for k in archive.files}
+    np.testing.assert_array_equal(persistence.load(path).word_unit_transitions_, expected)
+    np.savez(tmp_path / "old.npz", **{k: v for k, v in entries.items() if k != "word_unit_transitions"})
+    old = persistence.load(tmp_path / "old.npz")
+    assert not hasattr(old, "word_unit_transitions_")
+    np.testing.assert_allclose(old.recognise_sequence(vision, motor).scores, without.scores, atol=1e-9)
+    with pytest.raises(ValueError, match="cannot learn on"):
+        old.partial_fit(vision[:5], np.zeros((5, 80)), motor[:5])
+    bad = entries["word_unit_transitions"].copy()
+    bad[0, 0, 0] += 1
+    np.savez(tmp_path / "bad.npz", **{**entries, "word_unit_transitions": bad})
+    with pytest.raises(ValueError, match="do not add up to word_transitions"):
+        persistence.load(tmp_path / "bad.npz")
+
+
+def test_pose_components_weigh_in_recognition_over_time_once_counted(learned, counted):
+    """With the word statistics, each step's evidence is multiplied by N(pose | word, k) **
+    pose_evidence at the step's winner: checked against the components computed here; without
+    the statistics (or at 1e-12) the read-out is the one of the links and transitions alone."""
+    plain = learned[0]
+    model, _, _ = counted
+    _, _, stream, (vision, _, motor, _) = learned
+    vision, motor = vision[:800], motor[:800]
+    winners = model.recognise_batch(vision, motor).winners
+    centres = vision_code_centres(vision)
+    fit = np.empty((800, 3))
+    for w in range(3):
+        k = winners
+        n = np.maximum(model.word_samples_[w, k], 1.0)
+        mean = model.word_pose_sums_[w, k] / n[:, None]
+        var = model.word_pose_squares_[w, k] / n[:, None] - mean[:, :2] ** 2
+        sd = np.sqrt(np.maximum(var, 0.25))
+        r = np.clip(np.hypot(mean[:, 2], mean[:, 3]), 1e-6, 1)
+        sd_phi = np.maximum(np.sqrt(-2 * np.log(r)) * 24 / (2 * np.pi), 0.5)
+        mean_phi = np.arctan2(mean[:, 3], mean[:, 2]) * 24 / (2 * np.pi)
+        dphi = (centres[:, 2] - mean_phi + 12) % 24 - 12
+        d2 = ((centres[:, :2] - mean[:, :2]) / sd) ** 2
+        fit[:, w] = -np.log(sd[:, 0] * sd[:, 1] * sd_phi) - 0.5 * (d2.sum(axis=1) + (dphi / sd_phi) ** 2)
+        few = model.word_samples_[w, k] < model.min_word_samples
+        fit[few, w] = np.nan
+    best = np.nanmax(fit, axis=1, keepdims=True)
+    fit = np.where(np.isnan(fit), best, fit)
+    np.testing.assert_allclose(model._pose_fit_at_winners(vision, winners), fit, rtol=1e-9)
+    # The belief: transitions then evidence times the pose factor, step by step.
+    evidence = model._sequence_evidence(np.concatenate([[-1], winners[:-1]]), winners)
+    evidence *= np.exp(0.1 * (fit - fit.max(axis=1, keepdims=True)))
+    transitions = model._word_transitions_after(np.concatenate([[-1], winners[:-1]]))
+    belief = np.full(3, 1 / 3)
+    for t in range(800):
+        belief = (belief @ transitions[t]) * evidence[t]
+        belief /= belief.sum()
+    result = model.recognise_sequence(vision, motor)
+    np.testing.assert_allclose(np.exp(result.scores[-1]), belief, rtol=1e-9)
+    faint = copy.deepcopy(model)
+    faint.pose_evidence = 1e-12
+    np.testing.assert_allclose(
+        faint.recognise_sequence(vision, motor).scores,
+        plain.recognise_sequence(vision, motor).scores,
+        rtol=1e-6,
+    )
+
+
 def test_recognition_over_time_in_pieces_equals_one_call(learned):
     """A stream recognised in pieces, each continuing from the last one's state, gives the same
     beliefs as one call, with steps not seen among them; on a step not seen the belief only moves
@@ -149,7 +237,13 @@ def test_any_split_into_calls_gives_the_same_network():
     pieces = HierarchicalAssociator(lower=Associator(**{**PARAMS, "n_steps_total": 3000}))
     for lo, hi in ((0, 137), (137, 1000), (1000, 3000)):
         pieces.partial_fit(*(a[lo:hi] for a in stream))
-    for name in ("word_links_", "word_transitions_", "transition_keys_", "transition_counts_"):
+    for name in (
+        "word_links_",
+        "word_transitions_",
+        "word_unit_transitions_",
+        "transition_keys_",
+        "transition_counts_",
+    ):
         np.testing.assert_array_equal(getattr(whole, name), getattr(pieces, name))
     assert (whole.last_word_, whole.last_winner_) == (pieces.last_word_, pieces.last_winner_)
     np.testing.assert_array_equal(whole.lower_.W_bu_, pieces.lower_.W_bu_)
@@ -364,6 +458,8 @@ def test_lower_estimator_params_round_trip_and_files_keep_their_layout(tmp_path)
         "pose_weight": 0.03,
         "pose_width_floor": 0.5,
         "min_word_samples": 20,
+        "unit_transition_prior": 10.0,
+        "pose_evidence": 0.1,
     }
     assert model.vocabulary == WORDS
     model.fit(*_small_stream())
@@ -385,6 +481,7 @@ def test_lower_estimator_params_round_trip_and_files_keep_their_layout(tmp_path)
             "transition_keys",
             "transition_counts",
             "last_sample",
+            "word_unit_transitions",
         ]
         assert int(archive["format_version"]) == 1
         assert json.loads(str(archive["params"])).keys() == Associator().get_params().keys()
