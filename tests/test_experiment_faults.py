@@ -154,8 +154,8 @@ def _corruptions(path: pathlib.Path):
 
 
 def test_every_file_damaged_is_recovered_or_refused_in_one_line(reference, tmp_path, capsys):
-    """Each file of a finished run folder (of the videos, one stands for all: each damaged video
-    reruns the whole video stage) truncated, emptied or with bytes flipped, the three in turn from
+    """Each file of a finished run folder (one video and one figure stand for the others: each
+    damaged one reruns its whole stage) truncated, emptied or with bytes flipped, the three in turn from
     file to file, and ``state.json`` in all three ways: the rerun ends with the reference results,
     or stops with one line and exit status 2, and then ``--fresh`` recovers."""
     files = sorted(
@@ -164,8 +164,9 @@ def test_every_file_damaged_is_recovered_or_refused_in_one_line(reference, tmp_p
         if p.is_file()
         and p.name != "run.lock"
         and (p.suffix != ".mp4" or p.name == "student_go.mp4")
+        and (p.parent.name != "figures" or p.name == "fig3_word_codes.png")
     )
-    assert len(files) >= 18, files
+    assert len(files) >= 14, files
     modes = ("truncated", "emptied", "flipped")
     cases = [(name, modes[i % 3]) for i, name in enumerate(files)]
     cases += [(pathlib.Path("state.json"), mode) for mode in modes]
