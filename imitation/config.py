@@ -217,8 +217,8 @@ class VideoConfig:
     whether to log each episode as a ROS 2 MCAP file too."""
 
     enabled: bool = True
-    width: int = 480
-    height: int = 360
+    width: int = 640
+    height: int = 480
     mcap: bool = False
 
     def __post_init__(self):
