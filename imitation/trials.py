@@ -115,28 +115,35 @@ def _worker_setup(config: RunConfig, networks: dict):
     return models, env, calibration
 
 
+def run_planned_trial(config: RunConfig, env, item: PlannedTrial, policy: str, model, calibration):
+    """Runs one planned trial of ``policy`` (driving with ``model``; the teacher seeded by the
+    trial) and returns it."""
+    agent = make_agent(
+        config,
+        policy,
+        performance.ROW_WORD[item.row],
+        env,
+        model,
+        calibration,
+        rng=[config.seed, performance.ROWS.index(item.row), item.index],
+    )
+    return performance.run_trial(
+        env,
+        agent,
+        item.row,
+        item.start,
+        item.wall,
+        seconds=config.performance.trial_seconds,
+        config=config.performance.success,
+    )
+
+
 def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file: str) -> list:
     models, env, calibration = _worker_setup(config, networks)
     out = []
     for k, item in enumerate(plan):
-        row_index = performance.ROWS.index(item.row)
-        agent = make_agent(
-            config,
-            item.policy,
-            performance.ROW_WORD[item.row],
-            env,
-            models.get(item.policy),
-            calibration,
-            rng=[config.seed, row_index, item.index],
-        )
-        result = performance.run_trial(
-            env,
-            agent,
-            item.row,
-            item.start,
-            item.wall,
-            seconds=config.performance.trial_seconds,
-            config=config.performance.success,
+        result = run_planned_trial(
+            config, env, item, item.policy, models.get(item.policy), calibration
         )
         est = result.estimate
         valid = np.all(np.isfinite(est), axis=1)
@@ -256,25 +263,7 @@ def _traces_worker(jobs: list, config: RunConfig, folder: str, progress_file: st
         if kind == "fig4":
             result = from_fig4_start(config, env, policy, models.get(policy), calibration, word)
         else:
-            row_index = performance.ROWS.index(item.row)
-            agent = make_agent(
-                config,
-                policy,
-                word,
-                env,
-                models.get(policy),
-                calibration,
-                rng=[config.seed, row_index, item.index],
-            )
-            result = performance.run_trial(
-                env,
-                agent,
-                item.row,
-                item.start,
-                item.wall,
-                seconds=config.performance.trial_seconds,
-                config=config.performance.success,
-            )
+            result = run_planned_trial(config, env, item, policy, models.get(policy), calibration)
         key = (kind, policy, word, None if item is None else item.index)
         out[key] = (
             result.trace,

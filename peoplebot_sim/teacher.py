@@ -115,8 +115,12 @@ class TeacherConfig:
                 f"{low_high!r}"
             )
         rates = self.slip_rate_per_s
-        if not isinstance(rates, dict) or set(rates) != {"go", "pick", "lift"} or not all(
-            isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 for v in rates.values()
+        if (
+            not isinstance(rates, dict)
+            or set(rates) != {"go", "pick", "lift"}
+            or not all(
+                isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 for v in rates.values()
+            )
         ):
             raise ValueError(
                 "teacher.slip_rate_per_s must give a rate >= 0 per second for go, pick and lift, "
@@ -135,7 +139,6 @@ class TeacherConfig:
                 "teacher.max_seconds must give a positive number of seconds for go, pick and "
                 f"lift, got {self.max_seconds!r}"
             )
-
 
     def undisturbed(self) -> TeacherConfig:
         """Returns these settings without disturbances: the controller alone, as the reference

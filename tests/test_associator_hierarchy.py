@@ -146,10 +146,14 @@ def test_word_transitions_are_counted_per_previous_winner(learned, tmp_path):
     with np.load(path) as archive:
         entries = {k: archive[k] for k in archive.files}
     np.testing.assert_array_equal(persistence.load(path).word_unit_transitions_, expected)
-    np.savez(tmp_path / "old.npz", **{k: v for k, v in entries.items() if k != "word_unit_transitions"})
+    np.savez(
+        tmp_path / "old.npz", **{k: v for k, v in entries.items() if k != "word_unit_transitions"}
+    )
     old = persistence.load(tmp_path / "old.npz")
     assert not hasattr(old, "word_unit_transitions_")
-    np.testing.assert_allclose(old.recognise_sequence(vision, motor).scores, without.scores, atol=1e-9)
+    np.testing.assert_allclose(
+        old.recognise_sequence(vision, motor).scores, without.scores, atol=1e-9
+    )
     with pytest.raises(ValueError, match="cannot learn on"):
         old.partial_fit(vision[:5], np.zeros((5, 80)), motor[:5])
     bad = entries["word_unit_transitions"].copy()
@@ -181,7 +185,9 @@ def test_pose_components_weigh_in_recognition_over_time_once_counted(learned, co
         mean_phi = np.arctan2(mean[:, 3], mean[:, 2]) * 24 / (2 * np.pi)
         dphi = (centres[:, 2] - mean_phi + 12) % 24 - 12
         d2 = ((centres[:, :2] - mean[:, :2]) / sd) ** 2
-        fit[:, w] = -np.log(sd[:, 0] * sd[:, 1] * sd_phi) - 0.5 * (d2.sum(axis=1) + (dphi / sd_phi) ** 2)
+        fit[:, w] = -np.log(sd[:, 0] * sd[:, 1] * sd_phi) - 0.5 * (
+            d2.sum(axis=1) + (dphi / sd_phi) ** 2
+        )
         few = model.word_samples_[w, k] < model.min_word_samples
         fit[few, w] = np.nan
     best = np.nanmax(fit, axis=1, keepdims=True)
