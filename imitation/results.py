@@ -205,7 +205,7 @@ class TrialRecord:
     touched: bool
     end_pose: tuple
     own_pose_error_cm_median: float | None
-    reason: str = ""
+    reason: str
 
     def to_json(self) -> dict:
         out = dataclasses.asdict(self)

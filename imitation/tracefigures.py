@@ -84,8 +84,8 @@ def fig4_all(
     path,
     start,
     policies,
-    dock=None,
-    tolerance=(0.15, 20.0),
+    dock,
+    tolerance,
     arena: ArenaGeometry = ArenaGeometry(),
 ) -> str:
     """Fig. 4 for every policy (one row each, the paper's layout: one panel per word, all from
@@ -125,8 +125,8 @@ def fig4_random_starts(
     traces: dict,
     path,
     policies,
-    dock=None,
-    tolerance=(0.15, 20.0),
+    dock,
+    tolerance,
     arena: ArenaGeometry = ArenaGeometry(),
 ) -> str:
     """Fig. 4's companion: every policy (rows) from the first random starts of each word's trials

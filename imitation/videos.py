@@ -135,7 +135,7 @@ class _Film:
 
     def finish(self, result) -> None:
         """Holds the last frame for ``HOLD_S`` with the verdict and its reason."""
-        held = verdict(self.last, result.success, getattr(result, "reason", ""))
+        held = verdict(self.last, result.success, result.reason)
         for _ in range(int(round(HOLD_S / self.config.task.control_timestep))):
             self._append(held)
 
@@ -216,14 +216,9 @@ def _film_worker(jobs: list, config: RunConfig, folder: str, progress_file: str)
         finally:
             film.close(keep=finished)
         frames = film.frames
-        out.append(Filmed(policy, word, path.name, bool(result.success), result_reason(result)))
+        out.append(Filmed(policy, word, path.name, bool(result.success), result.reason))
     env.close()
     return out
-
-
-def result_reason(result) -> str:
-    """Returns a trial's one-line reason (empty where the trial records none)."""
-    return str(getattr(result, "reason", ""))
 
 
 def _side_by_side_worker(words: list, policies: tuple, folder: str, progress_file: str) -> list:

@@ -11,6 +11,7 @@ import pytest
 
 from imitation import overlay, tracefigures
 from imitation.cli import build_parser
+from imitation.performance import SuccessConfig
 from peoplebot_sim.viewpoints import FollowCamera
 
 
@@ -64,9 +65,12 @@ def _traces(n=30, k=2):
 def test_fig4_drawings_on_constructed_traces(tmp_path):
     policies = ("teacher", "student", "student_hierarchical")
     dock = (0.0, 1.2, math.pi / 2)
+    success = SuccessConfig()
+    tolerance = (success.dock_position_tol_m, success.dock_heading_tol_deg)
+    start = (0, 0.6, math.pi / 2)
     for draw, name in (
-        (lambda p: tracefigures.fig4_all(_traces(), p, (0, 0.6, math.pi / 2), policies, dock), "a"),
-        (lambda p: tracefigures.fig4_random_starts(_traces(), p, policies, dock), "b"),
+        (lambda p: tracefigures.fig4_all(_traces(), p, start, policies, dock, tolerance), "a"),
+        (lambda p: tracefigures.fig4_random_starts(_traces(), p, policies, dock, tolerance), "b"),
     ):
         image = imageio.imread(draw(tmp_path / f"{name}.png"))
         assert image.shape[0] > 900 and image.shape[1] > 900 and image.std() > 5
