@@ -38,7 +38,11 @@ OWN_PARAMS = (
     "min_word_samples",
     "unit_transition_prior",
     "pose_evidence",
+    "perform_temperature",
 )
+
+#: Hyper-parameters for which 0 is a setting (switches a read-out off), not an error.
+_MAY_BE_ZERO = ("perform_temperature",)
 
 #: The word layer's pose and motor statistics (``count_word_statistics``), counted with the lower
 #: level frozen: further training of the lower level drops them.
@@ -153,6 +157,10 @@ class HierarchicalAssociator:
         Once ``count_word_statistics`` has counted, recognition over time also weighs how well the
         pose fits each word's component at the winner: its evidence is multiplied by
         ``N(pose | word, k) ** pose_evidence`` (default 0.1).
+    perform_temperature : float
+        Performing with the counted components: 0 (default) drives with the winner's
+        ``p(directive | k, word)``; above 0, with their mixture over every counted component,
+        each weighted by ``softmax(activation / perform_temperature)`` (0 or more).
     """
 
     def __init__(
@@ -169,6 +177,7 @@ class HierarchicalAssociator:
         min_word_samples: int = 20,
         unit_transition_prior: float = 10.0,
         pose_evidence: float = 0.1,
+        perform_temperature: float = 0.0,
     ):
         self.lower = lower
         self.motor_gain = motor_gain
@@ -181,6 +190,7 @@ class HierarchicalAssociator:
         self.min_word_samples = min_word_samples
         self.unit_transition_prior = unit_transition_prior
         self.pose_evidence = pose_evidence
+        self.perform_temperature = perform_temperature
 
     def _lower_estimator(self) -> Associator:
         """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
@@ -214,6 +224,7 @@ class HierarchicalAssociator:
             min_word_samples=int(self.min_word_samples),
             unit_transition_prior=float(self.unit_transition_prior),
             pose_evidence=float(self.pose_evidence),
+            perform_temperature=float(self.perform_temperature),
         )
         return params
 
@@ -227,7 +238,10 @@ class HierarchicalAssociator:
         self._lower_estimator().validate_params()
         for name in OWN_PARAMS:
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+            if name in _MAY_BE_ZERO:
+                if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
+                    raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+            elif not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")
         if float(self.min_word_samples) != int(self.min_word_samples):
             raise ValueError(
@@ -614,8 +628,9 @@ class HierarchicalAssociator:
 
         The winner maximises ``cos(v, W_bu,k[vision]) + word_bias * log p(k | word)``, plus
         ``pose_weight * log N(pose | word, k)`` once ``count_word_statistics`` has counted; the
-        output is then ``p(directive | k, word)``, else the lower level's motor area reconstructed
-        at the winner (divided by ``motor_gain``)."""
+        output is then ``p(directive | k, word)`` (with ``perform_temperature`` > 0, its mixture
+        over the counted components, ``_mixture_motor``), else the lower level's motor area
+        reconstructed at the winner (divided by ``motor_gain``)."""
         self._check_fitted()
         vision = encoding.check_codes(vision, N_VISION, "vision")
         n = vision.shape[0]
@@ -653,8 +668,26 @@ class HierarchicalAssociator:
             counts = self.word_motor_counts_[w, k]
             totals = counts.sum(axis=1, keepdims=True)
             motor[part] = np.where(counted[:, None], counts / np.maximum(totals, 1.0), motor_td[k])
+            if self.perform_temperature > 0 and np.any(counted):
+                rows = np.flatnonzero(counted)
+                motor[start + rows] = self._mixture_motor(activation[rows], w[rows])
         best = motor.argmax(axis=1)
         return BatchPerformance(np.asarray(DIRECTIVES)[best], motor, winners)
+
+    def _mixture_motor(self, activation: np.ndarray, word_index: np.ndarray) -> np.ndarray:
+        """Returns (n, 4): ``sum_k softmax(activation / perform_temperature)_k p(d | k, word)``
+        over the word's counted components (the others, at -inf, weigh nothing)."""
+        scaled = activation / self.perform_temperature
+        scaled -= scaled.max(axis=1, keepdims=True)
+        weights = np.exp(scaled)
+        weights /= weights.sum(axis=1, keepdims=True)
+        counts = self.word_motor_counts_
+        table = counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
+        out = np.empty((len(activation), N_MOTOR))
+        for word in np.unique(word_index):
+            rows = word_index == word
+            out[rows] = weights[rows] @ table[word]
+        return out
 
     def perform(self, vision, word) -> Performance:
         """Chooses the motor directive for one vision code (96,) and word; see

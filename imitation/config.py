@@ -151,6 +151,9 @@ class HierarchyConfig:
     pose_weight: float = _HIERARCHY_DEFAULTS["pose_weight"]
     pose_width_floor: float = _HIERARCHY_DEFAULTS["pose_width_floor"]
     min_word_samples: int = _HIERARCHY_DEFAULTS["min_word_samples"]
+    unit_transition_prior: float = _HIERARCHY_DEFAULTS["unit_transition_prior"]
+    pose_evidence: float = _HIERARCHY_DEFAULTS["pose_evidence"]
+    perform_temperature: float = _HIERARCHY_DEFAULTS["perform_temperature"]
 
     def hyper_parameters(self) -> dict:
         """Returns the hierarchical associator's own hyper-parameters by name."""

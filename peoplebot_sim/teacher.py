@@ -33,6 +33,9 @@ import numpy as np
 from associator.encoding import DIRECTIVES
 from perception.wallframe import ArenaGeometry, world_to_wall, wrap_degrees
 
+#: How the teacher's 'pick' reaches the dock (``TeacherConfig.docking``).
+DOCKINGS = ("lane", "phased")
+
 
 @dataclasses.dataclass(frozen=True)
 class TeacherConfig:
@@ -46,8 +49,14 @@ class TeacherConfig:
       turn_away_deg, turn_away_jitter_deg: after a turn the heading is this far from the obstacle's
         direction (uniform jitter); 180 would reverse, 90 would run along the wall.
       student_radius_m: the student is avoided as a disc of this radius.
-      pick_max_x_m, pick_max_abs_y_m, pick_max_abs_phi_deg: the 'pick' trigger, in the top wall's
-        frame (the paper: close to the target, -45 < phi < 45).
+      pick_trigger_x_m, pick_max_abs_y_m, pick_max_abs_phi_deg: the 'pick' trigger, in the top
+        wall's frame (the paper: close to the target, -45 < phi < 45): closer to the wall than a
+        depth drawn each cycle uniformly from the ``pick_trigger_x_m`` (min, max) range, so that
+        'pick' is shown from every depth where it is asked for.
+      pick_trigger_probability: each time 'go' enters the trigger region it switches to 'pick'
+        with this probability; otherwise 'go' goes on there (turning away from the table as from
+        any obstacle) until it has left the region, so that 'go' is also shown in front of the
+        table.
       dock_x_m: docked distance of the robot's centre from the top wall: table depth 0.40 m, a 6 cm
         gap, then the gripper's 0.365 m reach.
       predock_gap_m: 'pick' lines up this far in front of the docked pose before driving in.
@@ -55,6 +64,13 @@ class TeacherConfig:
       approach_lead_m, approach_heading_tol_deg: the final approach steers at a point this far
         beyond the docked pose on its centre line, within this heading tolerance.
       settle_pattern: the docked robot's final alignment, small turns in place that cancel out.
+      docking: how 'pick' reaches the dock: 'phased' (line up at the pre-dock point, face the
+        table, drive in: phases latched once entered) or 'lane' (a function of the pose: inside
+        the docking lane it drives in; outside it lines up at the pre-dock point, backing up to it
+        when it is nearer the table than that point).
+      lane_ratio: the docking lane's half-width over the distance to the approach's aim point
+        (``approach_lead_m`` beyond the dock): steering at that point keeps this ratio, so a robot
+        inside the lane stays inside it as it drives in.
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
       slip_rate_per_s: disturbances per second of each behaviour (a Poisson rate; 0: none). In
@@ -72,7 +88,8 @@ class TeacherConfig:
     turn_away_deg: float = 130.0
     turn_away_jitter_deg: float = 35.0
     student_radius_m: float = 0.40
-    pick_max_x_m: float = 1.6
+    pick_trigger_x_m: tuple = (1.2, 1.6)
+    pick_trigger_probability: float = 0.75
     pick_max_abs_y_m: float = 1.2
     pick_max_abs_phi_deg: float = 45.0
     dock_x_m: float = 0.825
@@ -81,6 +98,8 @@ class TeacherConfig:
     approach_lead_m: float = 0.5
     settle_pattern: tuple = ("turn_left", "turn_right", "turn_right", "turn_left") * 2
     approach_heading_tol_deg: float = 4.0
+    docking: str = "lane"
+    lane_ratio: float = 0.16
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
     lift_backoff_m: float = 0.9
@@ -103,17 +122,13 @@ class TeacherConfig:
                 raise ValueError(
                     f"teacher.{field.name} must be a finite number >= 0, got {value!r}"
                 )
-        low_high = self.slip_seconds
-        if not (
-            isinstance(low_high, (tuple, list))
-            and len(low_high) == 2
-            and all(isinstance(v, (int, float)) and math.isfinite(v) for v in low_high)
-            and 0 < low_high[0] <= low_high[1]
-        ):
+        if not 0 < self.pick_trigger_probability <= 1:
             raise ValueError(
-                f"teacher.slip_seconds must be (min, max) seconds with 0 < min <= max, got "
-                f"{low_high!r}"
+                "teacher.pick_trigger_probability must be in (0, 1], got "
+                f"{self.pick_trigger_probability!r}"
             )
+        for name in ("slip_seconds", "pick_trigger_x_m"):
+            _check_range(f"teacher.{name}", getattr(self, name))
         rates = self.slip_rate_per_s
         if (
             not isinstance(rates, dict)
@@ -125,6 +140,10 @@ class TeacherConfig:
             raise ValueError(
                 "teacher.slip_rate_per_s must give a rate >= 0 per second for go, pick and lift, "
                 f"got {rates!r}"
+            )
+        if self.docking not in DOCKINGS:
+            raise ValueError(
+                f"unknown teacher.docking {self.docking!r}; allowed: {', '.join(DOCKINGS)}"
             )
         unknown = [d for d in self.settle_pattern if d not in DIRECTIVES]
         if unknown:
@@ -144,6 +163,17 @@ class TeacherConfig:
         """Returns these settings without disturbances: the controller alone, as the reference
         row performs."""
         return dataclasses.replace(self, slip_rate_per_s={"go": 0.0, "pick": 0.0, "lift": 0.0})
+
+
+def _check_range(name: str, low_high) -> None:
+    """Raises ValueError unless ``low_high`` is a (min, max) pair with 0 < min <= max."""
+    if not (
+        isinstance(low_high, (tuple, list))
+        and len(low_high) == 2
+        and all(isinstance(v, (int, float)) and math.isfinite(v) for v in low_high)
+        and 0 < low_high[0] <= low_high[1]
+    ):
+        raise ValueError(f"{name} must be (min, max) with 0 < min <= max, got {low_high!r}")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,6 +242,9 @@ class Teacher:
         "executed",
         "_slip_steps",
         "_slip_directive",
+        "_trigger_x_m",
+        "_in_trigger_region",
+        "_pick_on_entry",
     )
 
     def get_state(self) -> dict:
@@ -256,6 +289,9 @@ class Teacher:
             self.finished = True  # a single behaviour is done: hold it instead of moving on
             self.phase = "done"
             return
+        if word == "go":
+            self._trigger_x_m = float(self._rng.uniform(*self.config.pick_trigger_x_m))
+            self._in_trigger_region = self._pick_on_entry = False
         self.word = word
         self.phase = phase
         self._behaviour_start_s = getattr(self, "time_s", 0.0)
@@ -365,12 +401,16 @@ class Teacher:
     def _go(self, x, y, yaw, student):
         c = self.config
         wall = world_to_wall(x, y, yaw, self.arena)
-        if getattr(self, "loop", True) and (
+        inside = (
             wall.wall == "top"
-            and wall.x_m < c.pick_max_x_m
+            and wall.x_m < self._trigger_x_m
             and abs(wall.y_m) < c.pick_max_abs_y_m
             and abs(wall.phi_deg) < c.pick_max_abs_phi_deg
-        ):
+        )
+        if inside and not self._in_trigger_region:  # entering: 'pick' now, or not this time
+            self._pick_on_entry = bool(self._rng.random() < c.pick_trigger_probability)
+        self._in_trigger_region = inside
+        if getattr(self, "loop", True) and inside and self._pick_on_entry:
             self._enter("pick", "line_up")
             return self._pick(x, y, yaw, student)
         if self.phase == "backoff":
@@ -397,6 +437,11 @@ class Teacher:
         c = self.config
         dock_x, dock_y, dock_yaw = self.dock_pose
         heading_error = wrap_degrees(math.degrees(dock_yaw - yaw))
+        if c.docking == "lane" and self.phase in ("line_up", "face", "approach"):
+            directive = self._lane_docking(x, y, yaw)
+            if directive is not None:
+                return directive
+            self.phase = "square"
         if self.phase == "line_up":
             if abs(x - dock_x) <= c.lateral_tol_m and y <= dock_y:
                 self.phase = "face"
@@ -441,6 +486,43 @@ class Teacher:
         if self.finished:
             return self.directive
         return self._lift(x, y, yaw, student)
+
+    def _lane_docking(self, x, y, yaw) -> str | None:
+        """Returns the 'lane' docking's directive at a pose, or None once it stands at the dock's
+        depth inside the lane (then it squares up and settles, as the phased docking does).
+
+        Inside the lane (lateral offset at most ``lane_ratio`` x the distance to the aim point
+        ``approach_lead_m`` beyond the dock) it steers at that point and drives in; outside it
+        goes to the pre-dock point, forwards when it is farther from the table than that point,
+        else backwards (its rear towards the point), so that it never turns its back to the
+        table near it."""
+        c = self.config
+        dock_x, dock_y, _ = self.dock_pose
+        lateral = x - dock_x
+        to_aim = dock_y + c.approach_lead_m - y
+        # Once driving in, a little more room (x 1.25): heading errors within the approach's
+        # tolerance move the robot about the lane's edge.
+        ratio = c.lane_ratio * (1.25 if self.phase == "approach" else 1.0)
+        if abs(lateral) <= ratio * max(to_aim, 0.0):
+            if y >= dock_y - 0.015:
+                return None
+            self.phase = "approach"
+            error = wrap_degrees(math.degrees(math.atan2(to_aim, dock_x - x) - yaw))
+            if abs(error) > c.approach_heading_tol_deg:
+                return self._turn_towards(error)
+            return "forward"
+        self.phase = "line_up"
+        gx, gy = dock_x, dock_y - c.predock_gap_m
+        bearing = math.atan2(gy - y, gx - x)
+        if y <= gy:
+            error = wrap_degrees(math.degrees(bearing - yaw))
+            if abs(error) > c.heading_tol_deg:
+                return self._turn_towards(error)
+            return "forward"
+        error = wrap_degrees(math.degrees(bearing - yaw - math.pi))  # the rear's bearing
+        if abs(error) > c.heading_tol_deg:
+            return self._turn_towards(error)
+        return "backward"
 
     def _lift(self, x, y, yaw, student):
         c = self.config

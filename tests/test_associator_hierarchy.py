@@ -356,6 +356,44 @@ def test_counted_statistics_improve_performance_and_give_the_words_directive(lea
     assert np.all(model.word_samples_[stream.word[:2000], winners][has_any] >= 400)
 
 
+def test_mixture_read_out_weighs_every_counted_component_by_its_softmax(learned, counted):
+    """With ``perform_temperature`` > 0 the motor output is the softmax-weighted mixture of the
+    counted components' directive distributions (checked against the components computed here);
+    the winner stays the hard one, and a tiny temperature gives the winner's distribution."""
+    _, _, stream, (vision, _, _, _) = learned
+    model = copy.deepcopy(counted[0])
+    words = [WORDS[i] for i in stream.word[:500]]
+    hard = model.perform_batch(vision[:500], words)
+    model.perform_temperature = 0.05
+    soft = model.perform_batch(vision[:500], words)
+    np.testing.assert_array_equal(soft.winners, hard.winners)
+    # The mixture by hand, sample by sample.
+    lower = model.lower_
+    w_vision = lower.W_bu_[:, VISION_SLICE].astype(float)
+    w_vision /= np.linalg.norm(w_vision, axis=1, keepdims=True)
+    table = model.word_motor_counts_ / np.maximum(
+        model.word_motor_counts_.sum(axis=2, keepdims=True), 1.0
+    )
+    for i in range(0, 500, 50):
+        word = stream.word[i]
+        v = vision[i] / np.linalg.norm(vision[i])
+        pose = model._pose_log_likelihoods(vision[i : i + 1], np.array([word]))[0]
+        activation = (
+            v @ w_vision.T
+            + model.word_bias * np.log(model.word_likelihoods_()[word])
+            + model.pose_weight * pose
+        )
+        weights = np.exp((activation - activation.max()) / 0.05)
+        expected = (weights / weights.sum()) @ table[word]
+        np.testing.assert_allclose(soft.motor[i], expected, rtol=1e-9, atol=1e-12)
+    assert np.abs(soft.motor - hard.motor).max() > 0.05  # it does mix
+    model.perform_temperature = 1e-9
+    np.testing.assert_allclose(model.perform_batch(vision[:500], words).motor, hard.motor)
+    model.perform_temperature = -0.1
+    with pytest.raises(ValueError, match="perform_temperature must be a finite number >= 0"):
+        model.validate_params()
+
+
 def test_word_statistics_are_dropped_by_learning_and_kept_by_saving(counted, tmp_path):
     """Further learning changes the lower level, so it drops the statistics (performance then
     falls back to the lower W_td); a saved file keeps them, and one whose directive counts do not
@@ -466,6 +504,7 @@ def test_lower_estimator_params_round_trip_and_files_keep_their_layout(tmp_path)
         "min_word_samples": 20,
         "unit_transition_prior": 10.0,
         "pose_evidence": 0.1,
+        "perform_temperature": 0.0,
     }
     assert model.vocabulary == WORDS
     model.fit(*_small_stream())

@@ -16,7 +16,7 @@ from imitation.observers import Calibration, StudentVision
 from imitation.performance import StudentAgent, TeacherAgent, make_action
 from imitation.recognition import watch_with_vision
 from peoplebot_sim import task
-from perception.wallframe import ArenaGeometry, world_to_wall
+from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall
 
 ARENA = ArenaGeometry()
 
@@ -175,6 +175,35 @@ def test_teacher_reference_docks_settles_and_then_stands_still(student_env):
     assert np.hypot(end[0] - dock[0], end[1] - dock[1]) < 0.05
     moved = np.abs(np.diff(result.trace[done + 5 :], axis=0)).max(axis=0)
     assert np.all(moved[:2] < 1e-3) and moved[2] < 1e-3, moved
+
+
+@pytest.mark.parametrize("lateral_m", [-0.6, 0.6])
+def test_lane_docking_backs_up_from_near_the_table_and_docks(student_env, lateral_m):
+    """Started nearer the table than the pre-dock point and off the docking lane, the teacher backs
+    up towards that point instead of turning its back to the table, then drives in and holds the
+    dock; on the lane it drives in without backing up."""
+
+    def run(pose):
+        agent = TeacherAgent("pick", student_env.action_spec(), rng=0)
+        directives = []
+        result = performance.run_trial(
+            student_env,
+            agent,
+            "pick",
+            wall_to_world(pose),
+            "top",
+            frame_callback=lambda env, a: directives.append(a.directive),
+        )
+        return result, directives
+
+    result, directives = run(WallPose(1.05, lateral_m, 0.0, "top"))
+    assert result.success, result.reason
+    assert "backward" in directives
+    facing = [abs(world_to_wall(*pose).phi_deg) for pose in result.trace]
+    assert max(facing) < 90.0, max(facing)  # the table stays in front of it
+    result, directives = run(WallPose(1.4, 0.05, 0.0, "top"))
+    assert result.success, result.reason
+    assert "backward" not in directives
 
 
 @pytest.mark.parametrize("row", ["pick", "pick_other_wall"])

@@ -4,6 +4,7 @@ input, the teacher's go-pick-lift loop, and what the rendered cameras show to ``
 import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
 # isort: split
+import dataclasses
 import math
 import re
 
@@ -20,7 +21,7 @@ from imitation import performance
 from imitation.streams import StreamGenerator
 from peoplebot_sim import assets, cameras, directives, entities, task
 from peoplebot_sim.rendering import FrameRenderer
-from peoplebot_sim.teacher import TeacherConfig
+from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception import layout
 from perception.markers import DetectorConfig
 from perception.pantilt import head_camera
@@ -314,6 +315,42 @@ def test_teacher_completes_cycles_from_random_starts_without_watchdog_events(see
     assert teacher.events == []
     # Every word was performed.
     assert set(stream.word.tolist()) == {0, 1, 2}
+
+
+def test_pick_triggers_on_a_drawn_share_of_entries_and_go_goes_on_otherwise():
+    """Entering the trigger region, 'go' switches to 'pick' with ``pick_trigger_probability``
+    (a drawn share of entries); otherwise it stays 'go' while inside, and draws again on its next
+    entry. The trigger depth is drawn per cycle within ``pick_trigger_x_m``."""
+    outside = (0.0, 0.0, math.pi / 2)  # the arena's centre, facing the table
+    inside = (0.0, 0.6, math.pi / 2)  # 1.4 m from the top wall, on the centre line
+    picked, stayed = 0, 0
+    config = TeacherConfig(pick_trigger_x_m=(1.45, 1.6))
+    for seed in range(400):
+        teacher = Teacher(config, rng=seed)
+        assert 1.45 <= teacher._trigger_x_m <= 1.6
+        teacher.step(outside)
+        teacher.step(inside)
+        if teacher.word == "pick":
+            picked += 1
+            continue
+        for _ in range(3):  # still inside: no new draw
+            teacher.step(inside)
+            assert teacher.word == "go"
+        stayed += 1
+    assert abs(picked / 400 - config.pick_trigger_probability) < 0.07, picked
+    assert stayed == 400 - picked
+    # Leaving and entering again draws again: with probability 1 every entry picks.
+    teacher = Teacher(dataclasses.replace(config, pick_trigger_probability=1.0), rng=0)
+    teacher.step(outside)
+    teacher.step(inside)
+    assert teacher.word == "pick"
+    for bad in (0.0, 1.5):
+        with pytest.raises(ValueError, match="teacher.pick_trigger_probability must be in"):
+            TeacherConfig(pick_trigger_probability=bad)
+    with pytest.raises(ValueError, match=r"teacher.pick_trigger_x_m must be \(min, max\)"):
+        TeacherConfig(pick_trigger_x_m=(1.6, 1.2))
+    with pytest.raises(ValueError, match="unknown teacher.docking 'straight'; allowed: lane"):
+        TeacherConfig(docking="straight")
 
 
 def test_disturbances_turn_the_wheels_while_the_commands_stay_the_controllers():
