@@ -184,7 +184,8 @@ def stage_recognition(config: RunConfig, folder: pathlib.Path, model, encoder) -
             config.vision.mode,
             config.vision.width,
             config.vision.height,
-            task=config.task_config(),
+            task=config.world_config(),
+            perturbations=config.perturbations,
         )
 
         def on_camera(network, **readout):

@@ -10,9 +10,9 @@ import pathlib
 import numpy as np
 
 from associator import encoding, persistence
-from imitation import performance, storage
+from imitation import performance, perturbations, storage
 from imitation.config import RunConfig
-from imitation.observers import Calibration, StudentVision
+from imitation.observers import Calibration
 from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
 from peoplebot_sim.task import load
@@ -61,11 +61,11 @@ def trial_plan(config: RunConfig, policies=None) -> list[PlannedTrial]:
 
 def student_environment(config: RunConfig):
     """Returns the run's world with the student alone (and the overhead camera in that vision
-    mode), reset."""
+    mode; the student robot's actuation and body perturbations), reset."""
     vision = config.vision
     cameras = ("overhead",) if vision.mode == "overhead" else ()
     env = load(
-        config.task_config(
+        config.world_config(
             with_teacher=False, cameras=cameras, width=vision.width, height=vision.height
         ),
         seed=config.seed,
@@ -76,7 +76,8 @@ def student_environment(config: RunConfig):
 
 def make_agent(config: RunConfig, policy: str, word: str, env, model, calibration, rng=None):
     """Returns the agent of ``policy`` told ``word``: the teacher's controller (seeded by ``rng``)
-    or a student driving with ``model``."""
+    or a student driving with ``model``, seeing through ``calibration`` (the world's) as the run's
+    perturbations make it (their randomness keyed by ``rng``, default the run seed)."""
     spec = env.action_spec()
     if policy == "teacher":
         if rng is None:
@@ -89,7 +90,14 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
             rng=rng,
             teacher_config=config.teacher,
         )
-    student_vision = StudentVision(config.vision.mode, calibration, watch_teacher=False)
+    student_vision = perturbations.student_vision(
+        config.vision.mode,
+        calibration,
+        config.perturbations,
+        config.task.control_timestep,
+        [config.seed] if rng is None else rng,
+        watch_teacher=False,
+    )
     return performance.StudentAgent(
         model,
         word,
@@ -287,7 +295,7 @@ def from_fig4_start(
 ):
     """Runs ``policy`` (a student driving with ``model``, or the teacher) told ``word`` from the
     paper's Fig. 4 start for a whole trial (no early stop); returns the trial."""
-    rng = fig4_teacher_rng(config, word) if policy == "teacher" else None
+    rng = fig4_teacher_rng(config, word)
     agent = make_agent(config, policy, word, env, model, calibration, rng=rng)
     return performance.run_trial(
         env,
