@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import pathlib
 import sys
@@ -14,6 +15,8 @@ from imitation.calibrate import DEFAULT_BOARD_SPEC
 from peoplebot_sim.viewpoints import VIEWS
 
 RENDERS = pathlib.Path("renders")
+#: The named perturbation level sets (``imitation.perturbations.PRESETS``).
+PERTURBATION_PRESETS = ("realistic",)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -99,10 +102,13 @@ def reproduce_config(args):
     """Returns the run configuration the ``reproduce`` options ask for: the defaults or the quick
     preset, then ``--config``'s file, then the other options."""
     from imitation import config as run_config
+    from imitation import perturbations
 
     config = run_config.RunConfig.quick() if args.quick else run_config.RunConfig()
     if args.config is not None:
         config = run_config.load(args.config, base=config)
+    if getattr(args, "preset", None) is not None:
+        config = dataclasses.replace(config, perturbations=perturbations.preset(args.preset))
     changes = {
         key: getattr(args, option)
         for option, key in REPRODUCE_OPTIONS.items()
@@ -322,6 +328,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="a run configuration (TOML or JSON, e.g. a run folder's config.toml; keys left out "
         "keep the defaults, or the quick preset's with --quick); the other options override it",
+    )
+    rep.add_argument(
+        "--preset",
+        choices=PERTURBATION_PRESETS,
+        default=None,
+        help="test the student on a perturbed robot: a named level set of [perturbations] "
+        "(realistic: ARIA accelerations, 50 ms camera and command latency, camera noise and mild "
+        "blur, 2%% calibration error, encoder noise, caster friction; docs/transfer.md); "
+        "replaces --config's [perturbations]",
     )
     rep.add_argument(
         "--vision",
