@@ -287,11 +287,12 @@ class RunConfig:
 
     def world_config(self, **fields) -> TaskConfig:
         """Returns the world the student is tested in: ``task_config(**fields)`` with the
-        student robot's actuation and body perturbations."""
+        student robot's actuation and body perturbations and the room's appearance."""
         return dataclasses.replace(
             self.task_config(**fields),
             actuation=self.perturbations.actuation,
             body=self.perturbations.body,
+            appearance=self.perturbations.appearance,
         )
 
     def network_params(self) -> dict:

@@ -5,6 +5,8 @@ Each family acts at the layer where it happens on a robot:
 - ``perception``: the poses the student's vision reports (noise, latency, frame dropout, burst
   occlusion), applied to ``StudentVision``'s output by ``PerturbedVision``;
 - ``image``: the camera's frames before tracking (``perception.degrade``);
+- ``appearance``: the room the cameras see: lighting, shadows, surface colours
+  (``peoplebot_sim.appearance``, in the physics through ``RunConfig.world_config``);
 - ``calibration``: the calibration the student believes (``believed_calibration``); the world, and
   so every rendered frame, stays the simulator's;
 - ``proprioception``: the wheel encoder readings the student's odometry reads;
@@ -27,6 +29,7 @@ import math
 import numpy as np
 
 from imitation.observers import Calibration, StudentVision
+from peoplebot_sim.appearance import Appearance
 from peoplebot_sim.hardware import Actuation, Body
 from perception.degrade import ImageDegradation
 from perception.pantilt import HeadMount
@@ -147,6 +150,7 @@ class PerturbationConfig:
 
     perception: PerceptionFaults = PerceptionFaults()
     image: ImageDegradation = ImageDegradation()
+    appearance: Appearance = Appearance()
     calibration: CalibrationError = CalibrationError()
     proprioception: ProprioceptionFaults = ProprioceptionFaults()
     actuation: Actuation = Actuation()
@@ -201,6 +205,14 @@ FAMILIES = {
     "jpeg": _levels("image.jpeg_quality", (0, 90, 70, 50, 30, 10)),
     "exposure": _levels("image.exposure_stops", (0, -0.5, -1, -2, -3)),
     "lens_distortion": _levels("image.distortion_k1", (0, -0.02, -0.05, -0.1, -0.2)),
+    "lighting": _levels("appearance.light_fraction", (0, -0.1, -0.3, -0.5, -0.7, -0.85)),
+    "shadows": (
+        {},
+        {"appearance.shadows": True},
+        {"appearance.shadows": True, "appearance.light_tilt_deg": 30.0},
+        {"appearance.shadows": True, "appearance.light_tilt_deg": 60.0},
+    ),
+    "surface_colour": _levels("appearance.surface_tint_fraction", (0, 0.1, 0.25, 0.5, 0.75, 1.0)),
     "focal_error": _levels("calibration.focal_fraction", (0, 0.01, 0.02, 0.05, 0.1, 0.2)),
     "mount_position": _levels("calibration.position_cm", (0, 0.5, 1, 2, 5, 10)),
     "mount_rotation": _levels("calibration.rotation_deg", (0, 1, 2, 5, 10, 20)),
@@ -433,6 +445,15 @@ def student_vision(
     if not perturbations.vision_active:
         return vision
     return PerturbedVision(vision, perturbations, dt, seed)
+
+
+def teacher_vision(perturbations: PerturbationConfig, dt: float, seed):
+    """Returns the teacher reference's pose source under the perception faults (its true pose
+    through ``PoseCorruptor``), or None when they are off (it reads the true pose)."""
+    if not perturbations.perception.active:
+        return None
+    only = PerturbationConfig(perception=perturbations.perception)
+    return PerturbedVision(StudentVision("truth", None, watch_teacher=False), only, dt, seed)
 
 
 def seed_of(seed) -> int:

@@ -17,7 +17,7 @@ from associator.network import Associator
 from imitation.learning import encode_stream, inferred_directives
 from imitation.observers import Calibration, pose_or_nan
 from imitation.performance import make_action
-from imitation.perturbations import PerturbationConfig, student_vision
+from imitation.perturbations import PerturbationConfig, PoseCorruptor, rng_for, student_vision
 from imitation.results import CameraRecognition, ConfusionTable, ErrorSummary
 from imitation.streams import TeacherStream
 from peoplebot_sim import directives
@@ -156,6 +156,24 @@ def watch_with_vision(
     changed = np.concatenate([[False], directive[1:] != directive[:-1]])
     truth = _stream(truth_world, word, directive, changed)
     observed = _stream(seen_world, word, directive, changed)
+    return ObservedStream(truth, observed, np.all(np.isfinite(seen_world), axis=1))
+
+
+def perturbed_truth(
+    stream: TeacherStream, n_steps: int, perturbations: PerturbationConfig, dt: float, seed
+) -> ObservedStream:
+    """Returns the first ``n_steps`` of a recorded ``stream`` as a student in the 'truth' mode
+    sees them under ``perturbations.perception`` (noise, latency, dropout, occlusion of the
+    simulator's teacher poses; their randomness keyed by ``seed``), beside the truth."""
+    stream = stream.rows(slice(0, min(n_steps, len(stream))))
+    corruptor = PoseCorruptor(perturbations.perception, dt, rng_for(seed, "vision"), ("teacher",))
+    seen_world = np.full((len(stream), 3), np.nan)
+    for i, pose in enumerate(stream.pose_world.astype(float)):
+        seen_world[i] = pose_or_nan(corruptor.step({"teacher": pose})["teacher"])
+    truth = _stream(
+        stream.pose_world.astype(float), stream.word, stream.directive, stream.motor_changed
+    )
+    observed = _stream(seen_world, stream.word, stream.directive, stream.motor_changed)
     return ObservedStream(truth, observed, np.all(np.isfinite(seen_world), axis=1))
 
 

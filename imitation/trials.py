@@ -75,8 +75,9 @@ def student_environment(config: RunConfig):
 
 
 def make_agent(config: RunConfig, policy: str, word: str, env, model, calibration, rng=None):
-    """Returns the agent of ``policy`` told ``word``: the teacher's controller (seeded by ``rng``)
-    or a student driving with ``model``, seeing through ``calibration`` (the world's) as the run's
+    """Returns the agent of ``policy`` told ``word``: the teacher's controller (seeded by ``rng``;
+    its true pose under the run's perception faults) or a student driving with ``model``, seeing
+    through ``calibration`` (the world's) as the run's
     perturbations make it (their randomness keyed by ``rng``, default the run seed)."""
     spec = env.action_spec()
     if policy == "teacher":
@@ -89,6 +90,9 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
             arena=env.task.geometry,
             rng=rng,
             teacher_config=config.teacher,
+            vision=perturbations.teacher_vision(
+                config.perturbations, config.task.control_timestep, rng
+            ),
         )
     student_vision = perturbations.student_vision(
         config.vision.mode,

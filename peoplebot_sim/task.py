@@ -14,7 +14,7 @@ from dm_control import composer
 from dm_control.composer.observation import observable
 from dm_env import specs
 
-from peoplebot_sim import directives, entities, hardware
+from peoplebot_sim import appearance, directives, entities, hardware
 from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception.wallframe import ArenaGeometry, world_to_wall
 
@@ -105,6 +105,8 @@ class TaskConfig:
       time_limit: episode length in seconds (``float('inf')`` for endless).
       actuation, body: how the student's command path and body differ from the nominal robot
         (``peoplebot_sim.hardware``; the defaults are the nominal robot).
+      appearance: the room's lighting, shadows in the cameras and surface colours
+        (``peoplebot_sim.appearance``; the default is the nominal arena).
     """
 
     with_teacher: bool = True
@@ -120,6 +122,7 @@ class TaskConfig:
     time_limit: float = float("inf")
     actuation: hardware.Actuation = hardware.Actuation()
     body: hardware.Body = hardware.Body()
+    appearance: appearance.Appearance = appearance.Appearance()
 
     def __post_init__(self):
         for camera in self.cameras:
@@ -165,6 +168,7 @@ class ImitationTask(composer.Task):
         self.config = config
         self.geometry = ArenaGeometry()
         self._arena = entities.Arena()
+        appearance.apply_appearance(self._arena.mjcf_model, config.appearance)
         self._student = entities.PeopleBot("student")
         hardware.apply_body(self._student.mjcf_model, self._arena.floor, config.body)
         self._arena.attach(self._student).add("freejoint")
@@ -215,7 +219,7 @@ class ImitationTask(composer.Task):
 
     def _make_observables(self):
         c = self.config
-        no_shadow = {"shadow": False}
+        no_shadow = {"shadow": c.appearance.shadows}
         obs = {
             "student_pose": observable.Generic(self._student.planar_pose),
             "student_wall_pose": observable.Generic(lambda p: self._wall_pose(self._student, p)),

@@ -12,12 +12,13 @@ import pytest
 
 from imitation import config as run_config
 from imitation import perturbations as pt
-from imitation import trials
+from imitation import recognition, trials
 from imitation.cli import reproduce_config
 from imitation.observers import Calibration, StudentVision
 from imitation.reproduce import SHARED_LEARNING_SECTIONS
 from imitation.runstate import RunState
 from peoplebot_sim import hardware
+from peoplebot_sim.appearance import Appearance
 from peoplebot_sim.task import TaskConfig, load
 from perception import degrade
 from perception.odometry import WheelOdometry
@@ -102,6 +103,32 @@ def test_image_degradations_do_what_they_say():
     assert not np.array_equal(bent, checker)
     off = degrade.ImageDegradation()
     assert not off.active and np.array_equal(off.apply(checker, rng), checker)
+
+
+def _overhead_frame(appearance=Appearance()):
+    env = load(
+        TaskConfig(
+            cameras=("overhead",),
+            student_pose=(0.5, 0.0, 0.0),
+            teacher_pose=(-0.5, 0.5, 1.0),
+            appearance=appearance,
+        ),
+        seed=0,
+    )
+    frame = env.reset().observation["overhead_camera"]
+    env.close()
+    return frame
+
+
+def test_lighting_shadows_and_colours_change_the_frames_and_level_zero_does_not():
+    nominal = _overhead_frame()
+    assert np.array_equal(_overhead_frame(Appearance(light_fraction=0.0)), nominal)
+    darker = _overhead_frame(Appearance(light_fraction=-0.5))
+    assert darker.mean() < 0.85 * nominal.mean()
+    shadowed = _overhead_frame(Appearance(shadows=True, light_tilt_deg=60.0))
+    assert np.mean(shadowed.astype(int) < nominal.astype(int) - 30) > 0.02  # long shadows
+    tinted = _overhead_frame(Appearance(surface_tint_fraction=1.0))
+    assert tinted[..., 2].mean() < 0.7 * nominal[..., 2].mean()  # brown: far less blue
 
 
 # ----------------------------------------------------------------------------- calibration
@@ -233,7 +260,11 @@ def test_level_zero_of_every_family_is_the_unperturbed_configuration():
         zero = base.replace({f"perturbations.{k}": v for k, v in levels[0].items()})
         assert zero == base, family
         explicit = base.replace(
-            {f"perturbations.{k}": 0 for level in levels for k in level if "jpeg" not in k}
+            {
+                f"perturbations.{k}": False if isinstance(v, bool) else 0
+                for level in levels
+                for k, v in level.items()
+            }
         )
         assert explicit == base and not explicit.perturbations.active, family
     assert type(pt.student_vision("truth", None, base.perturbations, DT, 0)) is StudentVision
@@ -257,6 +288,20 @@ def test_level_zero_is_bit_identical_and_a_level_changes_the_trial():
     assert np.array_equal(_lift_trace(base), _lift_trace(zero))
     aria = base.replace({f"perturbations.{k}": v for k, v in pt.ARIA_ACCELERATION.items()})
     assert not np.array_equal(_lift_trace(base), _lift_trace(aria))
+
+
+def test_perception_faults_reach_truth_mode_recognition_and_the_teacher_reference(
+    teacher_stream,
+):
+    config = pt.PerturbationConfig(perception=pt.PerceptionFaults(dropout_fraction=0.5))
+    observed = recognition.perturbed_truth(teacher_stream, 400, config, DT, 5)
+    assert len(observed.seen) == 400 and 0.4 < observed.seen.mean() < 0.6
+    seen = observed.seen
+    assert np.allclose(observed.observed.pose_world[seen], observed.truth.pose_world[seen])
+    assert pt.teacher_vision(pt.PerturbationConfig(), DT, [0]) is None
+    vision = pt.teacher_vision(config, DT, [0, 1, 2])
+    reports = [vision.update({"student_pose": np.zeros(3)}, 0.0, DT)["student"] for _ in range(400)]
+    assert 0.4 < np.mean([r is None for r in reports]) < 0.6
 
 
 # ----------------------------------------------------------------------------- configuration
