@@ -54,6 +54,7 @@ def _cmd_demo(args) -> int:
         video=not args.no_video,
         shadows=not args.no_shadows,
         mcap=args.mcap,
+        preset=args.preset or "",
     )
     summary = run_demo(config, args.out, progress=not args.quiet)
     keys = (
@@ -294,6 +295,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--mcap",
         action="store_true",
         help="also write the episode as a ROS 2 MCAP log (<out>.mcap)",
+    )
+    demo.add_argument(
+        "--preset",
+        choices=PERTURBATION_PRESETS,
+        default=None,
+        help="a named perturbation level set (docs/transfer.md): the room's appearance and, for "
+        "an overhead recording, its frames' image faults and the calibration written beside it",
     )
     demo.add_argument("--quiet", action="store_true", help="no progress bar")
     demo.set_defaults(func=_cmd_demo)

@@ -356,3 +356,20 @@ def test_reproduce_takes_the_realistic_preset():
     assert reproduce_config(args).perturbations == pt.PRESETS["realistic"]
     args = build_parser().parse_args(["reproduce", "--quick"])
     assert not reproduce_config(args).perturbations.active
+
+
+def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed_calibration(
+    tmp_path,
+):
+    from imitation.demo import DemoConfig, run_demo
+    from perception import camerainfo
+
+    with pytest.raises(ValueError, match="unknown preset 'lab'; allowed: realistic"):
+        DemoConfig(preset="lab")
+    common = {"seconds": 0.5, "width": 160, "height": 120, "camera": "overhead", "shadows": False}
+    plain = run_demo(DemoConfig(**common), tmp_path / "plain.mp4", progress=False)
+    real = run_demo(DemoConfig(**common, preset="realistic"), tmp_path / "real.mp4", progress=False)
+    nominal = camerainfo.read(plain["recording"]["camera_info"])
+    believed = camerainfo.read(real["recording"]["camera_info"])
+    assert believed.camera.matrix[0, 0] == pytest.approx(nominal.camera.matrix[0, 0] * 1.02)
+    assert (tmp_path / "plain.mp4").read_bytes() != (tmp_path / "real.mp4").read_bytes()
