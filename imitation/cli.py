@@ -163,6 +163,37 @@ def _cmd_sweep(args) -> int:
     return 1 if summary["counts"]["failed"] else 0
 
 
+def _cmd_transfer(args) -> int:
+    from imitation import perturbations, transfer
+
+    changes = {
+        key: getattr(args, option)
+        for option, key in (
+            ("trials", "performance.trials"),
+            ("trial_seconds", "performance.trial_seconds"),
+            ("vision_test_steps", "vision.test_steps"),
+            ("workers", "workers"),
+        )
+        if getattr(args, option) is not None
+    }
+    out = args.out or pathlib.Path(args.reuse_from) / (
+        f"transfer-{args.vision or 'source'}" + (f"-{args.preset}" if args.preset else "")
+    )
+    transfer.transfer(
+        args.reuse_from,
+        out,
+        families=transfer.parse_families(args.families),
+        levels=transfer.parse_levels(args.levels),
+        vision=args.vision,
+        base_perturbations=perturbations.preset(args.preset) if args.preset else None,
+        changes=changes,
+        fresh=args.fresh,
+    )
+    print((pathlib.Path(out) / "transfer.md").read_text())
+    print(f"transfer folder: {out} (transfer.json, transfer.md, figures/, cells/)")
+    return 0
+
+
 def _cmd_watch(args) -> int:
     from imitation import watch
 
@@ -420,6 +451,66 @@ def build_parser() -> argparse.ArgumentParser:
         "source, steps and network): compare vision modes on one network",
     )
     rep.set_defaults(func=_cmd_reproduce)
+
+    tra = sub.add_parser(
+        "transfer",
+        help="a trained run's networks under each perturbation family and level: recognition, "
+        "performing and the operating envelope (docs/transfer.md)",
+        parents=[debug],
+    )
+    tra.add_argument(
+        "--reuse-from",
+        type=pathlib.Path,
+        required=True,
+        help="the finished run folder whose networks and test stream are tested",
+    )
+    tra.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=None,
+        help="the transfer's folder (default: RUN/transfer-<vision>[-<preset>]); rerun to resume",
+    )
+    tra.add_argument(
+        "--families",
+        default=None,
+        help="comma-separated families (default: all; see docs/transfer.md), e.g. latency,dropout",
+    )
+    tra.add_argument(
+        "--levels",
+        default=None,
+        help="comma-separated level numbers of each family's grid, 0 = off (default: all)",
+    )
+    tra.add_argument(
+        "--vision",
+        choices=("truth", "overhead", "head"),
+        default=None,
+        help="how the student sees (default: the source run's mode)",
+    )
+    tra.add_argument(
+        "--preset",
+        choices=PERTURBATION_PRESETS,
+        default=None,
+        help="perturbations under every level (e.g. realistic); default none",
+    )
+    tra.add_argument("--trials", type=_positive_int, default=None, help="trials per row and policy")
+    tra.add_argument(
+        "--trial-seconds", type=_positive_float, default=None, help="seconds per trial"
+    )
+    tra.add_argument(
+        "--vision-test-steps",
+        type=_positive_int,
+        default=None,
+        help="steps watched for recognition per cell",
+    )
+    tra.add_argument(
+        "--workers", type=_positive_int, default=None, help="processes for a cell's trials"
+    )
+    tra.add_argument(
+        "--fresh",
+        action="store_true",
+        help="start every chosen cell over (a cell made with other settings is refused without it)",
+    )
+    tra.set_defaults(func=_cmd_transfer)
 
     sweep = sub.add_parser(
         "sweep",

@@ -184,8 +184,18 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
 
 def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceResult:
     """Runs every trial of ``trial_plan`` and the Fig. 4 traces; returns the success rates."""
+    return PerformanceResult(success_rates(config, folder), fig4_traces(config, folder))
+
+
+def success_rates(
+    config: RunConfig, folder: pathlib.Path, networks_from: pathlib.Path | None = None
+) -> dict:
+    """Runs every trial of ``trial_plan`` with the networks of ``networks_from`` (default
+    ``folder``), writes them to ``folder``'s ``performance_trials.json`` and returns the success
+    rates, ``rates[row][policy]`` (None where a policy has no trials on a row)."""
     policies = policies_of(config)
-    networks = {p: str(folder / name) for p, name in STUDENT_NETWORKS.items() if p in policies}
+    source = folder if networks_from is None else pathlib.Path(networks_from)
+    networks = {p: str(source / name) for p, name in STUDENT_NETWORKS.items() if p in policies}
     plan = trial_plan(config, policies)
     workers = max(1, min(config.workers, len(plan)))
     chunks = [plan[i::workers] for i in range(workers)]
@@ -204,7 +214,7 @@ def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceRes
         for policy in policies:
             mine = [t for t in trials if t.row == row and t.policy == policy]
             rates[row][policy] = SuccessRate.of(mine) if mine else None
-    return PerformanceResult(rates, fig4_traces(config, folder))
+    return rates
 
 
 #: Random-start traces per word and policy drawn beside Fig. 4 (the first starts of the trials).
