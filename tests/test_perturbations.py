@@ -373,3 +373,12 @@ def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed
     believed = camerainfo.read(real["recording"]["camera_info"])
     assert believed.camera.matrix[0, 0] == pytest.approx(nominal.camera.matrix[0, 0] * 1.02)
     assert (tmp_path / "plain.mp4").read_bytes() != (tmp_path / "real.mp4").read_bytes()
+
+
+def test_results_md_names_the_perturbations_a_run_turned_on():
+    from imitation.report import _perturbed_keys
+
+    assert _perturbed_keys(run_config.RunConfig().to_dict()) == []
+    config = dataclasses.replace(run_config.RunConfig(), perturbations=pt.preset("realistic"))
+    keys = _perturbed_keys(config.to_dict())
+    assert "actuation.linear_accel_mps2 = 0.3" in keys and len(keys) == 14
