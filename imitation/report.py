@@ -87,7 +87,7 @@ def _rate(rate) -> str:
     return f"{_pct(rate.success_rate)} ({rate.successes}/{rate.trials})"
 
 
-def _perturbed_keys(config: dict | None) -> list[str]:
+def perturbed_settings(config: dict | None) -> list[str]:
     """Returns ``key = value`` for every perturbation a run's configuration turns on."""
     out = []
 
@@ -111,7 +111,7 @@ def markdown(res: Results) -> str:
         f"{res.motor_source}, seed {res.seed})",
         "",
     ]
-    perturbed = _perturbed_keys(res.config)
+    perturbed = perturbed_settings(res.config)
     if perturbed:
         lines += [
             "**Perturbed robot** (transfer test, docs/transfer.md): " + ", ".join(perturbed) + ".",

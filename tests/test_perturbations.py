@@ -376,9 +376,9 @@ def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed
 
 
 def test_results_md_names_the_perturbations_a_run_turned_on():
-    from imitation.report import _perturbed_keys
+    from imitation.report import perturbed_settings
 
-    assert _perturbed_keys(run_config.RunConfig().to_dict()) == []
+    assert perturbed_settings(run_config.RunConfig().to_dict()) == []
     config = dataclasses.replace(run_config.RunConfig(), perturbations=pt.preset("realistic"))
-    keys = _perturbed_keys(config.to_dict())
+    keys = perturbed_settings(config.to_dict())
     assert "actuation.linear_accel_mps2 = 0.3" in keys and len(keys) == 14

@@ -7,11 +7,14 @@ import json
 
 import pytest
 
+from associator import encoding
 from imitation import reproduce, transfer, trials
 from imitation.cli import main
 from imitation.config import RunConfig
 from imitation.runstate import RunState
+from perception.wallframe import ArenaGeometry
 
+ENCODER = encoding.VisionEncoder(half_side_m=ArenaGeometry().half_side_m)
 TINY = {
     "learning.train_steps": 1500,
     "learning.test_steps": 600,
@@ -37,7 +40,7 @@ def trained_run(tmp_path_factory):
         {k: v.to_json() for k, v in streams.items()},
         [folder / v.path for v in streams.values()],
     )
-    learned = reproduce.stage_learning(config, folder, reproduce._encoder())
+    learned = reproduce.stage_learning(config, folder, ENCODER)
     state.finish("learning", learned.to_json(), [folder / learned.paper.network])
     state.close()
     return folder
