@@ -390,7 +390,11 @@ def _merge(current, data, path: str):
         return dataclasses.replace(current, **changes)
     except ValueError as error:
         message = str(error)
-        raise ValueError(message if path in message or not path else f"{path}: {message}") from None
+        if path and path not in message:
+            # A record that names its own field ("mass_fraction must ...") gets its dotted key.
+            named = any(message.startswith(f"{name} ") for name in fields)
+            message = f"{path}.{message}" if named else f"{path}: {message}"
+        raise ValueError(message) from None
 
 
 def _converted(current, value, key: str):

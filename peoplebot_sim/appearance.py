@@ -33,27 +33,24 @@ class Appearance:
     surface_tint_fraction: float = 0.0
 
     def __post_init__(self):
-        key = "perturbations.appearance"
         for name in ("light_fraction", "light_tilt_deg", "surface_tint_fraction"):
             value = getattr(self, name)
             if isinstance(value, bool) or not (
                 isinstance(value, (int, float)) and math.isfinite(value)
             ):
-                raise ValueError(f"{key}.{name} must be a finite number, got {value!r}")
+                raise ValueError(f"{name} must be a finite number, got {value!r}")
         if not self.light_fraction > -1:
-            raise ValueError(
-                f"{key}.light_fraction must be greater than -1, got {self.light_fraction!r}"
-            )
+            raise ValueError(f"light_fraction must be greater than -1, got {self.light_fraction!r}")
         if not -80 <= self.light_tilt_deg <= 80:
             raise ValueError(
-                f"{key}.light_tilt_deg must be in [-80, 80] degrees, got {self.light_tilt_deg!r}"
+                f"light_tilt_deg must be in [-80, 80] degrees, got {self.light_tilt_deg!r}"
             )
         if not 0 <= self.surface_tint_fraction <= 1:
             raise ValueError(
-                f"{key}.surface_tint_fraction must be in [0, 1], got {self.surface_tint_fraction!r}"
+                f"surface_tint_fraction must be in [0, 1], got {self.surface_tint_fraction!r}"
             )
         if not isinstance(self.shadows, bool):
-            raise ValueError(f"{key}.shadows must be true or false, got {self.shadows!r}")
+            raise ValueError(f"shadows must be true or false, got {self.shadows!r}")
 
     @property
     def active(self) -> bool:

@@ -20,12 +20,12 @@ import math
 import numpy as np
 
 
-def _check_fields(record, section: str, signed: tuple = ()) -> None:
-    """Raises ValueError naming ``section.field`` unless every field is a finite number, >= 0
-    unless named in ``signed`` (then > -1, a fraction of a positive quantity)."""
+def _check_fields(record, signed: tuple = ()) -> None:
+    """Raises ValueError naming the field unless every field is a finite number, >= 0 unless
+    named in ``signed`` (then > -1, a fraction of a positive quantity)."""
     for field in dataclasses.fields(record):
         value = getattr(record, field.name)
-        key = f"{section}.{field.name}"
+        key = field.name
         if isinstance(value, bool) or not (
             isinstance(value, (int, float)) and math.isfinite(value)
         ):
@@ -53,7 +53,7 @@ class Actuation:
     yaw_accel_degps2: float = 0.0
 
     def __post_init__(self):
-        _check_fields(self, "perturbations.actuation")
+        _check_fields(self)
 
     @property
     def active(self) -> bool:
@@ -83,7 +83,6 @@ class Body:
     def __post_init__(self):
         _check_fields(
             self,
-            "perturbations.body",
             signed=(
                 "left_wheel_radius_fraction",
                 "right_wheel_radius_fraction",

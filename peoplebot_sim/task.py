@@ -219,7 +219,7 @@ class ImitationTask(composer.Task):
 
     def _make_observables(self):
         c = self.config
-        no_shadow = {"shadow": c.appearance.shadows}
+        shadows = {"shadow": c.appearance.shadows}
         obs = {
             "student_pose": observable.Generic(self._student.planar_pose),
             "student_wall_pose": observable.Generic(lambda p: self._wall_pose(self._student, p)),
@@ -246,13 +246,13 @@ class ImitationTask(composer.Task):
             self._arena.overhead_camera,
             width=c.width,
             height=c.height,
-            render_flag_overrides=no_shadow,
+            render_flag_overrides=shadows,
         )
         obs["head_camera"] = observable.MJCFCamera(
             self._student.head_camera,
             width=c.width,
             height=c.height,
-            render_flag_overrides=no_shadow,
+            render_flag_overrides=shadows,
         )
         # With composer's default update interval, delay and buffer size, each observable is computed
         # once per control step, after its last substep.

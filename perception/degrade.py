@@ -95,25 +95,20 @@ class ImageDegradation:
     def __post_init__(self):
         for field in dataclasses.fields(self):
             value = getattr(self, field.name)
-            key = f"perturbations.image.{field.name}"
+            key = field.name
             if isinstance(value, bool) or not (
                 isinstance(value, (int, float)) and math.isfinite(value)
             ):
                 raise ValueError(f"{key} must be a finite number, got {value!r}")
         for name in ("noise_sigma", "blur_px"):
             if getattr(self, name) < 0:
-                raise ValueError(
-                    f"perturbations.image.{name} must be >= 0 (0: off), got {getattr(self, name)}"
-                )
+                raise ValueError(f"{name} must be >= 0 (0: off), got {getattr(self, name)}")
         if not isinstance(self.jpeg_quality, int) or not 0 <= self.jpeg_quality <= 100:
             raise ValueError(
-                "perturbations.image.jpeg_quality must be an integer in [0, 100] (0: off), got "
-                f"{self.jpeg_quality!r}"
+                f"jpeg_quality must be an integer in [0, 100] (0: off), got {self.jpeg_quality!r}"
             )
         if not -0.5 <= self.distortion_k1 <= 0.5:
-            raise ValueError(
-                f"perturbations.image.distortion_k1 must be in [-0.5, 0.5], got {self.distortion_k1}"
-            )
+            raise ValueError(f"distortion_k1 must be in [-0.5, 0.5], got {self.distortion_k1}")
 
     @property
     def active(self) -> bool:
