@@ -176,8 +176,10 @@ def _cmd_transfer(args) -> int:
         )
         if getattr(args, option) is not None
     }
-    out = args.out or pathlib.Path(args.reuse_from) / (
-        f"transfer-{args.vision or 'source'}" + (f"-{args.preset}" if args.preset else "")
+    vision = args.vision or transfer.source_run(args.reuse_from).vision.mode
+    source = pathlib.Path(args.reuse_from).resolve()
+    out = args.out or RENDERS / "transfer" / (
+        f"{source.name}-{vision}" + (f"-{args.preset}" if args.preset else "")
     )
     transfer.transfer(
         args.reuse_from,
@@ -468,7 +470,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--out",
         type=pathlib.Path,
         default=None,
-        help="the transfer's folder (default: RUN/transfer-<vision>[-<preset>]); rerun to resume",
+        help="the transfer's folder (default: renders/transfer/<run folder>-<vision>[-<preset>]); "
+        "rerun to resume",
     )
     tra.add_argument(
         "--families",
