@@ -385,7 +385,7 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
     for family, data in summary["families"].items():
         levels = data["levels"]
         x = list(range(len(levels)))
-        fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
+        fig, (left, right) = plt.subplots(1, 2, figsize=(14, 4.5), sharey=True)
         for policy in POLICIES:
             for word in WORDS:
                 y = [lv["performance"].get(policy, {}).get(word) for lv in levels]
@@ -410,12 +410,18 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
                         color=colour,
                         label=f"{readout} {word}",
                     )
+        keys = [key.rsplit(".", 1)[-1] for key in levels[-1]["settings"]]
+        ticks = [
+            " / ".join(str(v) for v in lv["settings"].values()) if lv["label"] != "0" else "0"
+            for lv in levels
+        ]
         for axis, title in ((left, "performing: success rate"), (right, "recognition: correct")):
             axis.axhline(ENVELOPE_RATE, color="k", lw=0.5, alpha=0.5)
-            axis.set_xticks(x, [lv["label"] for lv in levels], rotation=30, ha="right", fontsize=7)
+            axis.set_xticks(x, ticks, fontsize=8)
+            axis.set_xlabel(" / ".join(keys), fontsize=8)
             axis.set_ylim(-0.05, 1.05)
             axis.set_title(title)
-            axis.legend(fontsize=6, ncol=2)
+            axis.legend(fontsize=6, ncol=1, loc="center left", bbox_to_anchor=(1.0, 0.5))
         fig.suptitle(f"{family} ({summary['vision']} vision)")
         fig.tight_layout()
         path = folder / f"{family}.png"
