@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import pathlib
 import sys
@@ -14,6 +15,8 @@ from imitation.calibrate import DEFAULT_BOARD_SPEC
 from peoplebot_sim.viewpoints import VIEWS
 
 RENDERS = pathlib.Path("renders")
+#: The named perturbation level sets (``imitation.perturbations.PRESETS``).
+PERTURBATION_PRESETS = ("realistic",)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -51,6 +54,7 @@ def _cmd_demo(args) -> int:
         video=not args.no_video,
         shadows=not args.no_shadows,
         mcap=args.mcap,
+        preset=args.preset or "",
     )
     summary = run_demo(config, args.out, progress=not args.quiet)
     keys = (
@@ -99,10 +103,13 @@ def reproduce_config(args):
     """Returns the run configuration the ``reproduce`` options ask for: the defaults or the quick
     preset, then ``--config``'s file, then the other options."""
     from imitation import config as run_config
+    from imitation import perturbations
 
     config = run_config.RunConfig.quick() if args.quick else run_config.RunConfig()
     if args.config is not None:
         config = run_config.load(args.config, base=config)
+    if getattr(args, "preset", None) is not None:
+        config = dataclasses.replace(config, perturbations=perturbations.preset(args.preset))
     changes = {
         key: getattr(args, option)
         for option, key in REPRODUCE_OPTIONS.items()
@@ -154,6 +161,39 @@ def _cmd_sweep(args) -> int:
     print((out / "sweep.md").read_text())
     print(f"sweep folder: {out} (sweep.json, sweep.md, figures/, cells/)")
     return 1 if summary["counts"]["failed"] else 0
+
+
+def _cmd_transfer(args) -> int:
+    from imitation import perturbations, transfer
+
+    changes = {
+        key: getattr(args, option)
+        for option, key in (
+            ("trials", "performance.trials"),
+            ("trial_seconds", "performance.trial_seconds"),
+            ("vision_test_steps", "vision.test_steps"),
+            ("workers", "workers"),
+        )
+        if getattr(args, option) is not None
+    }
+    vision = args.vision or transfer.source_run(args.reuse_from).vision.mode
+    source = pathlib.Path(args.reuse_from).resolve()
+    out = args.out or RENDERS / "transfer" / (
+        f"{source.name}-{vision}" + (f"-{args.preset}" if args.preset else "")
+    )
+    transfer.transfer(
+        args.reuse_from,
+        out,
+        families=transfer.parse_families(args.families),
+        levels=transfer.parse_levels(args.levels),
+        vision=args.vision,
+        base_perturbations=perturbations.preset(args.preset) if args.preset else None,
+        changes=changes,
+        fresh=args.fresh,
+    )
+    print((pathlib.Path(out) / "transfer.md").read_text())
+    print(f"transfer folder: {out} (transfer.json, transfer.md, figures/, cells/)")
+    return 0
 
 
 def _cmd_watch(args) -> int:
@@ -289,6 +329,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="also write the episode as a ROS 2 MCAP log (<out>.mcap)",
     )
+    demo.add_argument(
+        "--preset",
+        choices=PERTURBATION_PRESETS,
+        default=None,
+        help="a named perturbation level set (docs/transfer.md): the room's appearance and, for "
+        "an overhead recording, its frames' image faults and the calibration written beside it",
+    )
     demo.add_argument("--quiet", action="store_true", help="no progress bar")
     demo.set_defaults(func=_cmd_demo)
 
@@ -322,6 +369,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="a run configuration (TOML or JSON, e.g. a run folder's config.toml; keys left out "
         "keep the defaults, or the quick preset's with --quick); the other options override it",
+    )
+    rep.add_argument(
+        "--preset",
+        choices=PERTURBATION_PRESETS,
+        default=None,
+        help="test the student on a perturbed robot: a named level set of [perturbations] "
+        "(realistic: ARIA accelerations, 50 ms camera and command latency, camera noise and mild "
+        "blur, 2%% calibration error, encoder noise, caster friction; docs/transfer.md); "
+        "replaces --config's [perturbations]",
     )
     rep.add_argument(
         "--vision",
@@ -397,6 +453,67 @@ def build_parser() -> argparse.ArgumentParser:
         "source, steps and network): compare vision modes on one network",
     )
     rep.set_defaults(func=_cmd_reproduce)
+
+    tra = sub.add_parser(
+        "transfer",
+        help="a trained run's networks under each perturbation family and level: recognition, "
+        "performing and the operating envelope (docs/transfer.md)",
+        parents=[debug],
+    )
+    tra.add_argument(
+        "--reuse-from",
+        type=pathlib.Path,
+        required=True,
+        help="the finished run folder whose networks and test stream are tested",
+    )
+    tra.add_argument(
+        "--out",
+        type=pathlib.Path,
+        default=None,
+        help="the transfer's folder (default: renders/transfer/<run folder>-<vision>[-<preset>]); "
+        "rerun to resume",
+    )
+    tra.add_argument(
+        "--families",
+        default=None,
+        help="comma-separated families (default: all; see docs/transfer.md), e.g. latency,dropout",
+    )
+    tra.add_argument(
+        "--levels",
+        default=None,
+        help="comma-separated level numbers of each family's grid, 0 = off (default: all)",
+    )
+    tra.add_argument(
+        "--vision",
+        choices=("truth", "overhead", "head"),
+        default=None,
+        help="how the student sees (default: the source run's mode)",
+    )
+    tra.add_argument(
+        "--preset",
+        choices=PERTURBATION_PRESETS,
+        default=None,
+        help="perturbations under every level (e.g. realistic); default none",
+    )
+    tra.add_argument("--trials", type=_positive_int, default=None, help="trials per row and policy")
+    tra.add_argument(
+        "--trial-seconds", type=_positive_float, default=None, help="seconds per trial"
+    )
+    tra.add_argument(
+        "--vision-test-steps",
+        type=_positive_int,
+        default=None,
+        help="steps watched for recognition per cell",
+    )
+    tra.add_argument(
+        "--workers", type=_positive_int, default=None, help="processes for a cell's trials"
+    )
+    tra.add_argument(
+        "--fresh",
+        action="store_true",
+        help="start every chosen cell over (a cell made with other settings is refused without it)",
+    )
+    tra.set_defaults(func=_cmd_transfer)
 
     sweep = sub.add_parser(
         "sweep",

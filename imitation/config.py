@@ -23,6 +23,7 @@ from imitation import storage
 from imitation.learning import MOTOR_SOURCES
 from imitation.observers import VISION_MODES
 from imitation.performance import DRIVE_MODES, SuccessConfig
+from imitation.perturbations import PerturbationConfig
 from peoplebot_sim.task import TaskConfig
 from peoplebot_sim.teacher import TeacherConfig
 from perception.drive import DriveSpeeds
@@ -238,6 +239,9 @@ class RunConfig:
       task, teacher, drive: the world's clocks, the teacher's behaviour, the directives' speeds.
       learning, network, hierarchical: learning by watching and the two associators.
       vision, performance, videos: how the student sees, performs and is filmed.
+      perturbations: how the student's robot differs from the simulator's best case when it is
+        tested (recognition through the camera, performing, videos); the streams and the
+        learning never see them (``imitation.perturbations``; all off by default).
     """
 
     seed: int = 0
@@ -251,6 +255,7 @@ class RunConfig:
     vision: VisionConfig = VisionConfig()
     performance: PerformanceConfig = PerformanceConfig()
     videos: VideoConfig = VideoConfig()
+    perturbations: PerturbationConfig = PerturbationConfig()
 
     def __post_init__(self):
         if (
@@ -281,6 +286,16 @@ class RunConfig:
             drive=self.drive,
             teacher=self.teacher,
             **fields,
+        )
+
+    def world_config(self, **fields) -> TaskConfig:
+        """Returns the world the student is tested in: ``task_config(**fields)`` with the
+        student robot's actuation and body perturbations and the room's appearance."""
+        return dataclasses.replace(
+            self.task_config(**fields),
+            actuation=self.perturbations.actuation,
+            body=self.perturbations.body,
+            appearance=self.perturbations.appearance,
         )
 
     def network_params(self) -> dict:
@@ -378,7 +393,11 @@ def _merge(current, data, path: str):
         return dataclasses.replace(current, **changes)
     except ValueError as error:
         message = str(error)
-        raise ValueError(message if path in message or not path else f"{path}: {message}") from None
+        if path and path not in message:
+            # A record that names its own field ("mass_fraction must ...") gets its dotted key.
+            named = any(message.startswith(f"{name} ") for name in fields)
+            message = f"{path}.{message}" if named else f"{path}: {message}"
+        raise ValueError(message) from None
 
 
 def _converted(current, value, key: str):

@@ -13,13 +13,15 @@ import imageio.v2 as imageio
 import numpy as np
 from tqdm import tqdm
 
+from imitation import perturbations
+from imitation.observers import Calibration
 from imitation.overlay import annotate, inset
 from imitation.performance import dock_pose_at
 from imitation.rosbag import EpisodeRecorder
 from imitation.videos import BODY_ONLY_NOTE, DOCKING_RANGE_M
 from peoplebot_sim import cameras, directives
 from peoplebot_sim.rendering import FrameRenderer
-from peoplebot_sim.task import load
+from peoplebot_sim.task import TaskConfig, load
 from peoplebot_sim.viewpoints import VIEWS, FollowCamera, table_closeup
 from perception import camerainfo
 from perception.arenafile import write_arena
@@ -44,6 +46,9 @@ class DemoConfig:
       shadows: render shadows in the video.
       mcap: also write the episode as a ROS 2 MCAP log (``<name>.mcap``: the overhead camera's
         frames and camera_info, the robots' poses, the teacher's word and directive).
+      preset: a named perturbation level set (``imitation.perturbations.PRESETS``; "" none): the
+        room's appearance, and for an overhead recording its frames' image faults and the
+        calibration written beside it (the one a student would believe).
     """
 
     seconds: float = 180.0
@@ -55,8 +60,11 @@ class DemoConfig:
     video: bool = True
     shadows: bool = True
     mcap: bool = False
+    preset: str = ""
 
     def __post_init__(self):
+        if self.preset:
+            perturbations.preset(self.preset)
         if not (np.isfinite(self.seconds) and 0.1 <= self.seconds <= MAX_SECONDS):
             raise ValueError(
                 f"seconds must be at least one control step (0.1 s) and at most {MAX_SECONDS:.0f} "
@@ -87,7 +95,10 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
     (same name, .json); returns the summary."""
     out_path = pathlib.Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
-    env = load(seed=config.seed)
+    faults = perturbations.preset(config.preset) if config.preset else None
+    appearance = faults.appearance if faults is not None else TaskConfig().appearance
+    env = load(TaskConfig(appearance=appearance), seed=config.seed)
+    image_rng = perturbations.rng_for(config.seed, "image")
     timestep = env.reset()
     task = env.task
     control_dt = task.control_timestep
@@ -155,6 +166,8 @@ def run_demo(config: DemoConfig, out_path, progress: bool = True) -> dict:
                 else:
                     frame = renderer.render(camera)
                 if recording:
+                    if faults is not None and faults.image.active:
+                        frame = faults.image.apply(frame, image_rng)
                     writer.append_data(frame)
                     continue
                 caption = (
@@ -224,9 +237,15 @@ def _truth_row(frame: int, time_s: float, observation, word: str, directive: str
 
 def _write_recording(env, config: DemoConfig, video_path: pathlib.Path, truth, dt) -> dict:
     """Beside an overhead recording, writes what a real one would come with, so that ``peoplebot
-    watch`` can take it: the camera's ``camera_info`` YAML, the arena file with the camera's pose,
-    and the true poses per frame (``<name>.truth.csv``); returns their paths."""
+    watch`` can take it: the camera's ``camera_info`` YAML, the arena file with the camera's pose
+    (under a preset, the calibration its student would believe), and the true poses per frame
+    (``<name>.truth.csv``); returns their paths."""
     camera = cameras.camera_model(env.physics, "overhead", config.width, config.height)
+    if config.preset:
+        error = perturbations.preset(config.preset).calibration
+        world = Calibration(env.physics, config.width, config.height)
+        rng = perturbations.rng_for(config.seed, "calibration")
+        camera = perturbations.believed_calibration(world, error, rng).overhead
     stem = video_path.with_suffix("")
     paths = {
         "camera_info": stem.with_name(f"{stem.name}.camera_info.yaml"),

@@ -20,7 +20,7 @@ import numpy as np
 
 from peoplebot_sim import cameras
 from perception.odometry import WheelOdometry
-from perception.pantilt import PanTiltController, head_camera
+from perception.pantilt import HeadMount, PanTiltController, head_camera
 from perception.pipeline import Tracker
 
 VISION_MODES = ("truth", "overhead", "head")
@@ -34,11 +34,14 @@ def check_vision_mode(mode: str) -> str:
 
 class Calibration:
     """The student's camera calibrations, measured once from the simulator (as one would calibrate a
-    real camera): the overhead camera with its fixed pose, and the head camera's intrinsics."""
+    real camera): the overhead camera with its fixed pose, the head camera's intrinsics, its
+    mount on the robot and the zero offsets of its pan and tilt readings (degrees)."""
 
     def __init__(self, physics, width: int, height: int):
         self.overhead = cameras.camera_model(physics, "overhead", width, height)
         self.head_intrinsics = cameras.camera_model(physics, "student/head_camera", width, height)
+        self.head_mount = HeadMount()
+        self.head_angle_offsets_deg = (0.0, 0.0)
 
 
 class StudentVision:
@@ -105,7 +108,12 @@ class StudentVision:
         out = {"student": own, "teacher": None}
         if self.watch_teacher:
             pan, tilt = (math.degrees(a) for a in observation["student_head_angles"])
-            camera = head_camera(self.calibration.head_intrinsics, own, pan, tilt)
+            if self.calibration.head_angle_offsets_deg != (0.0, 0.0):
+                pan_zero, tilt_zero = self.calibration.head_angle_offsets_deg
+                pan, tilt = pan + pan_zero, tilt + tilt_zero
+            camera = head_camera(
+                self.calibration.head_intrinsics, own, pan, tilt, self.calibration.head_mount
+            )
             track = self.tracker.update(observation["head_camera"], camera, time_s)["teacher"]
             if track.track.pose is not None:
                 out["teacher"] = track.track.pose.copy()

@@ -145,7 +145,8 @@ class TeacherAgent:
     """The teacher's controller performing one word on the student's robot: the reference row. It
     reads the true pose (the teacher is a scripted demonstrator, not a learner) and performs
     undisturbed (``TeacherConfig.undisturbed``); once its behaviour is done it stands still
-    (directive None), as a real robot would."""
+    (directive None), as a real robot would. ``vision``: where its pose comes from instead (a
+    'truth'-mode vision under perception faults); it stands still while its pose is unknown."""
 
     def __init__(
         self,
@@ -155,7 +156,9 @@ class TeacherAgent:
         arena: ArenaGeometry = ArenaGeometry(),
         rng=None,
         teacher_config: TeacherConfig = TeacherConfig(),
+        vision=None,
     ):
+        self.vision = vision
         self.word, self.spec, self.drive, self.arena, self._rng = (
             word,
             action_spec,
@@ -170,9 +173,18 @@ class TeacherAgent:
         self.controller = Teacher(self.teacher_config, arena=self.arena, rng=self._rng)
         self.controller.begin(self.word, loop=False)
         self.directive, self.motor = None, None
+        if self.vision is not None:
+            self.vision.reset()
+            self.time_s = 0.0
 
     def step(self, timestep, dt: float = 0.1) -> np.ndarray:
         pose = timestep.observation["student_pose"]
+        if self.vision is not None:
+            pose = self.vision.update(timestep.observation, self.time_s, dt)["student"]
+            self.time_s += dt
+            if pose is None:
+                self.directive = None
+                return make_action(self.spec, (0.0, 0.0))
         directive = self.controller.step(pose, None, dt)
         if self.controller.finished:
             self.directive = None

@@ -15,8 +15,9 @@ from tqdm import tqdm
 from associator import encoding
 from associator.network import Associator
 from imitation.learning import encode_stream, inferred_directives
-from imitation.observers import Calibration, StudentVision, pose_or_nan
+from imitation.observers import Calibration, pose_or_nan
 from imitation.performance import make_action
+from imitation.perturbations import PerturbationConfig, PoseCorruptor, rng_for, student_vision
 from imitation.results import CameraRecognition, ConfusionTable, ErrorSummary
 from imitation.streams import TeacherStream
 from peoplebot_sim import directives
@@ -110,10 +111,12 @@ def watch_with_vision(
     height: int = 240,
     progress: bool = True,
     task: TaskConfig = TaskConfig(),
+    perturbations: PerturbationConfig = PerturbationConfig(),
 ) -> ObservedStream:
     """Runs the environment (``task``, with the teacher) with the teacher looping and the student
     watching through its camera (``vision_mode`` 'overhead' or 'head', frames of ``width`` x
-    ``height`` pixels); returns what it saw beside the truth."""
+    ``height`` pixels) as ``perturbations`` make it see (their randomness keyed by ``seed``);
+    returns what it saw beside the truth."""
     if vision_mode not in ("overhead", "head"):
         raise ValueError(f"vision_mode must be 'overhead' or 'head', got {vision_mode!r}")
     if n_steps <= 0:
@@ -123,7 +126,9 @@ def watch_with_vision(
     )
     timestep = env.reset()
     calibration = Calibration(env.physics, width, height)
-    vision = StudentVision(vision_mode, calibration, watch_teacher=True)
+    vision = student_vision(
+        vision_mode, calibration, perturbations, env.task.control_timestep, seed
+    )
     start = np.asarray(timestep.observation["student_pose"])
     vision.reset(start, timestep.observation["student_wheel_angles"])
     spec = env.action_spec()
@@ -151,6 +156,24 @@ def watch_with_vision(
     changed = np.concatenate([[False], directive[1:] != directive[:-1]])
     truth = _stream(truth_world, word, directive, changed)
     observed = _stream(seen_world, word, directive, changed)
+    return ObservedStream(truth, observed, np.all(np.isfinite(seen_world), axis=1))
+
+
+def perturbed_truth(
+    stream: TeacherStream, n_steps: int, perturbations: PerturbationConfig, dt: float, seed
+) -> ObservedStream:
+    """Returns the first ``n_steps`` of a recorded ``stream`` as a student in the 'truth' mode
+    sees them under ``perturbations.perception`` (noise, latency, dropout, occlusion of the
+    simulator's teacher poses; their randomness keyed by ``seed``), beside the truth."""
+    stream = stream.rows(slice(0, min(n_steps, len(stream))))
+    corruptor = PoseCorruptor(perturbations.perception, dt, rng_for(seed, "vision"), ("teacher",))
+    seen_world = np.full((len(stream), 3), np.nan)
+    for i, pose in enumerate(stream.pose_world.astype(float)):
+        seen_world[i] = pose_or_nan(corruptor.step({"teacher": pose})["teacher"])
+    truth = _stream(
+        stream.pose_world.astype(float), stream.word, stream.directive, stream.motor_changed
+    )
+    observed = _stream(seen_world, stream.word, stream.directive, stream.motor_changed)
     return ObservedStream(truth, observed, np.all(np.isfinite(seen_world), axis=1))
 
 

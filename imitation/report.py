@@ -87,6 +87,21 @@ def _rate(rate) -> str:
     return f"{_pct(rate.success_rate)} ({rate.successes}/{rate.trials})"
 
 
+def perturbed_settings(config: dict | None) -> list[str]:
+    """Returns ``key = value`` for every perturbation a run's configuration turns on."""
+    out = []
+
+    def walk(node, prefix):
+        for key, value in node.items():
+            if isinstance(value, dict):
+                walk(value, f"{prefix}{key}.")
+            elif value and key != "occlusion_burst_s":
+                out.append(f"{prefix}{key} = {value}")
+
+    walk((config or {}).get("perturbations") or {}, "")
+    return out
+
+
 def markdown(res: Results) -> str:
     """Returns ``results.md``: the tables beside the paper's."""
     words = directives.WORDS
@@ -96,6 +111,12 @@ def markdown(res: Results) -> str:
         f"{res.motor_source}, seed {res.seed})",
         "",
     ]
+    perturbed = perturbed_settings(res.config)
+    if perturbed:
+        lines += [
+            "**Perturbed robot** (transfer test, docs/transfer.md): " + ", ".join(perturbed) + ".",
+            "",
+        ]
     rec = res.recognition
     if rec is not None:
         truth = rec.truth

@@ -155,7 +155,9 @@ def _listed(params: dict) -> dict:
 
 
 def stage_recognition(config: RunConfig, folder: pathlib.Path, model, encoder) -> RecognitionResult:
-    """Table I on the test stream for every read-out; through the camera in camera modes."""
+    """Table I on the test stream for every read-out; through the camera in camera modes, and in
+    the 'truth' mode under perception faults on the stream's first ``vision.test_steps`` steps
+    as the faults make the student see them."""
     stream = TeacherStream.load(folder / "streams" / "test.npz")
     dt = config.task.control_timestep
     motor_source = config.learning.motor_source
@@ -177,15 +179,22 @@ def stage_recognition(config: RunConfig, folder: pathlib.Path, model, encoder) -
         hierarchical = persistence.load(folder / "hierarchical.npz")
         values["truth_hierarchical"] = on_stream(hierarchical)[1]
         values["truth_hierarchical_over_time"] = on_stream(hierarchical, over_time=True)[1]
-    if config.vision.mode != "truth":
+    observed = None
+    if config.vision.mode == "truth" and config.perturbations.perception.active:
+        observed = recognition.perturbed_truth(
+            stream, config.vision.test_steps, config.perturbations, dt, config.seed * 2 + 3
+        )
+    elif config.vision.mode != "truth":
         observed = recognition.watch_with_vision(
             config.seed * 2 + 3,
             config.vision.test_steps,
             config.vision.mode,
             config.vision.width,
             config.vision.height,
-            task=config.task_config(),
+            task=config.world_config(),
+            perturbations=config.perturbations,
         )
+    if observed is not None:
 
         def on_camera(network, **readout):
             return recognition.recognise_observed(

@@ -10,9 +10,9 @@ import pathlib
 import numpy as np
 
 from associator import encoding, persistence
-from imitation import performance, storage
+from imitation import performance, perturbations, storage
 from imitation.config import RunConfig
-from imitation.observers import Calibration, StudentVision
+from imitation.observers import Calibration
 from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
 from peoplebot_sim.task import load
@@ -61,11 +61,11 @@ def trial_plan(config: RunConfig, policies=None) -> list[PlannedTrial]:
 
 def student_environment(config: RunConfig):
     """Returns the run's world with the student alone (and the overhead camera in that vision
-    mode), reset."""
+    mode; the student robot's actuation and body perturbations), reset."""
     vision = config.vision
     cameras = ("overhead",) if vision.mode == "overhead" else ()
     env = load(
-        config.task_config(
+        config.world_config(
             with_teacher=False, cameras=cameras, width=vision.width, height=vision.height
         ),
         seed=config.seed,
@@ -75,8 +75,10 @@ def student_environment(config: RunConfig):
 
 
 def make_agent(config: RunConfig, policy: str, word: str, env, model, calibration, rng=None):
-    """Returns the agent of ``policy`` told ``word``: the teacher's controller (seeded by ``rng``)
-    or a student driving with ``model``."""
+    """Returns the agent of ``policy`` told ``word``: the teacher's controller (seeded by ``rng``;
+    its true pose under the run's perception faults) or a student driving with ``model``, seeing
+    through ``calibration`` (the world's) as the run's
+    perturbations make it (their randomness keyed by ``rng``, default the run seed)."""
     spec = env.action_spec()
     if policy == "teacher":
         if rng is None:
@@ -88,8 +90,18 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
             arena=env.task.geometry,
             rng=rng,
             teacher_config=config.teacher,
+            vision=perturbations.teacher_vision(
+                config.perturbations, config.task.control_timestep, rng
+            ),
         )
-    student_vision = StudentVision(config.vision.mode, calibration, watch_teacher=False)
+    student_vision = perturbations.student_vision(
+        config.vision.mode,
+        calibration,
+        config.perturbations,
+        config.task.control_timestep,
+        [config.seed] if rng is None else rng,
+        watch_teacher=False,
+    )
     return performance.StudentAgent(
         model,
         word,
@@ -172,8 +184,18 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
 
 def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceResult:
     """Runs every trial of ``trial_plan`` and the Fig. 4 traces; returns the success rates."""
+    return PerformanceResult(success_rates(config, folder), fig4_traces(config, folder))
+
+
+def success_rates(
+    config: RunConfig, folder: pathlib.Path, networks_from: pathlib.Path | None = None
+) -> dict:
+    """Runs every trial of ``trial_plan`` with the networks of ``networks_from`` (default
+    ``folder``), writes them to ``folder``'s ``performance_trials.json`` and returns the success
+    rates, ``rates[row][policy]`` (None where a policy has no trials on a row)."""
     policies = policies_of(config)
-    networks = {p: str(folder / name) for p, name in STUDENT_NETWORKS.items() if p in policies}
+    source = folder if networks_from is None else pathlib.Path(networks_from)
+    networks = {p: str(source / name) for p, name in STUDENT_NETWORKS.items() if p in policies}
     plan = trial_plan(config, policies)
     workers = max(1, min(config.workers, len(plan)))
     chunks = [plan[i::workers] for i in range(workers)]
@@ -192,7 +214,7 @@ def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceRes
         for policy in policies:
             mine = [t for t in trials if t.row == row and t.policy == policy]
             rates[row][policy] = SuccessRate.of(mine) if mine else None
-    return PerformanceResult(rates, fig4_traces(config, folder))
+    return rates
 
 
 #: Random-start traces per word and policy drawn beside Fig. 4 (the first starts of the trials).
@@ -287,7 +309,7 @@ def from_fig4_start(
 ):
     """Runs ``policy`` (a student driving with ``model``, or the teacher) told ``word`` from the
     paper's Fig. 4 start for a whole trial (no early stop); returns the trial."""
-    rng = fig4_teacher_rng(config, word) if policy == "teacher" else None
+    rng = fig4_teacher_rng(config, word)
     agent = make_agent(config, policy, word, env, model, calibration, rng=rng)
     return performance.run_trial(
         env,

@@ -163,5 +163,9 @@ class Arena(_FileEntity):
         return self._mjcf_root.find("camera", "overhead")
 
     @property
+    def floor(self):
+        return self._mjcf_root.find("geom", "floor")
+
+    @property
     def showcase_camera(self):
         return self._mjcf_root.find("camera", "showcase")

@@ -14,7 +14,7 @@ from dm_control import composer
 from dm_control.composer.observation import observable
 from dm_env import specs
 
-from peoplebot_sim import directives, entities
+from peoplebot_sim import appearance, directives, entities, hardware
 from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception.wallframe import ArenaGeometry, world_to_wall
 
@@ -103,6 +103,10 @@ class TaskConfig:
         the robot on the free floor (``start_pose``), and the teacher's keeps clear of the
         student's (``check_apart``).
       time_limit: episode length in seconds (``float('inf')`` for endless).
+      actuation, body: how the student's command path and body differ from the nominal robot
+        (``peoplebot_sim.hardware``; the defaults are the nominal robot).
+      appearance: the room's lighting, shadows in the cameras and surface colours
+        (``peoplebot_sim.appearance``; the default is the nominal arena).
     """
 
     with_teacher: bool = True
@@ -116,6 +120,9 @@ class TaskConfig:
     student_pose: tuple | None = None
     teacher_pose: tuple | None = None
     time_limit: float = float("inf")
+    actuation: hardware.Actuation = hardware.Actuation()
+    body: hardware.Body = hardware.Body()
+    appearance: appearance.Appearance = appearance.Appearance()
 
     def __post_init__(self):
         for camera in self.cameras:
@@ -161,7 +168,9 @@ class ImitationTask(composer.Task):
         self.config = config
         self.geometry = ArenaGeometry()
         self._arena = entities.Arena()
+        appearance.apply_appearance(self._arena.mjcf_model, config.appearance)
         self._student = entities.PeopleBot("student")
+        hardware.apply_body(self._student.mjcf_model, self._arena.floor, config.body)
         self._arena.attach(self._student).add("freejoint")
         self._teacher = None
         if config.with_teacher:
@@ -178,6 +187,9 @@ class ImitationTask(composer.Task):
         self._in_contact = False
         self._last_directive = "forward"
         self.set_timesteps(config.control_timestep, config.physics_timestep)
+        self._command_filter = None
+        if config.actuation.active:
+            self._command_filter = hardware.CommandFilter(config.actuation, config.physics_timestep)
         self._task_observables = self._make_observables()
 
     # ------------------------------------------------------------------ entities
@@ -207,7 +219,7 @@ class ImitationTask(composer.Task):
 
     def _make_observables(self):
         c = self.config
-        no_shadow = {"shadow": False}
+        shadows = {"shadow": c.appearance.shadows}
         obs = {
             "student_pose": observable.Generic(self._student.planar_pose),
             "student_wall_pose": observable.Generic(lambda p: self._wall_pose(self._student, p)),
@@ -234,13 +246,13 @@ class ImitationTask(composer.Task):
             self._arena.overhead_camera,
             width=c.width,
             height=c.height,
-            render_flag_overrides=no_shadow,
+            render_flag_overrides=shadows,
         )
         obs["head_camera"] = observable.MJCFCamera(
             self._student.head_camera,
             width=c.width,
             height=c.height,
-            render_flag_overrides=no_shadow,
+            render_flag_overrides=shadows,
         )
         # With composer's default update interval, delay and buffer size, each observable is computed
         # once per control step, after its last substep.
@@ -326,6 +338,8 @@ class ImitationTask(composer.Task):
         )
         self.teacher_controller.reset(rng)
         self._last_directive = self.teacher_controller.directive
+        if self._command_filter is not None:
+            self._command_filter.reset()
         self.collisions = 0
         self._in_contact = False
 
@@ -363,6 +377,13 @@ class ImitationTask(composer.Task):
         physics.data.ctrl[self._actuator_ids(physics)] = action
         if self._teacher is not None:
             self.drive_teacher(physics)
+
+    def before_substep(self, physics, action, random_state):
+        """Passes the student's wheel command through its firmware's command path
+        (``TaskConfig.actuation``), once per physics step; nothing when it is nominal."""
+        if self._command_filter is not None:
+            setpoint = self._command_filter.step(np.asarray(action, dtype=float)[:2])
+            physics.data.ctrl[self._actuator_ids(physics)[:2]] = setpoint
 
     def _actuator_ids(self, physics) -> np.ndarray:
         key = id(physics.model.ptr)

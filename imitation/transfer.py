@@ -1,0 +1,432 @@
+"""``peoplebot transfer``: a trained run's networks tested under each perturbation family, level
+by level, with the operating envelope.
+
+Each (family, level) is a cell, ``OUT/cells/<name>/`` (level 0 of every family is one cell,
+``baseline``): a run folder of its own configuration (the source run's, with the vision mode, the
+trial settings and the perturbations of the level) whose two stages, ``recognition`` (watching
+the teacher, as the camera modes do, or the recorded test stream in the 'truth' mode) and
+``performance`` (every student and the teacher's controller from the run's random starts), are
+checkpointed in its ``state.json``: an interrupted transfer resumes, and a finished cell is kept.
+The networks and the test stream are read from the source run, never copied. The report:
+``transfer.json``, ``transfer.md`` and ``figures/<family>.png``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import pathlib
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from associator import encoding, persistence  # noqa: E402
+from imitation import perturbations, recognition, storage, trials  # noqa: E402
+from imitation.config import RunConfig  # noqa: E402
+from imitation.results import WORDS, package_versions  # noqa: E402
+from imitation.runstate import RunState  # noqa: E402
+from imitation.streams import TeacherStream  # noqa: E402
+from perception.wallframe import ArenaGeometry  # noqa: E402
+
+#: A word is inside the operating envelope while its success rate is at least this.
+ENVELOPE_RATE = 0.8
+#: The recognition read-outs measured in every cell.
+READOUTS = ("paper", "hierarchical", "hierarchical_over_time")
+#: The policies whose success the envelope gives.
+POLICIES = ("student", "student_hierarchical", "teacher")
+#: What ``peoplebot transfer`` writes into its folder.
+SUMMARY_VERSION = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class TransferCell:
+    """One configuration to test: its folder name, the perturbation settings it sets (dotted
+    keys under ``perturbations``) and its whole configuration."""
+
+    name: str
+    settings: tuple
+    config: RunConfig
+
+
+@dataclasses.dataclass(frozen=True)
+class CellResult:
+    """A cell's numbers: correct recognition per read-out and word (None: no steps of it seen),
+    the fraction of steps the teacher was seen, and success rates per policy and row with their
+    trial counts."""
+
+    recognition: dict
+    seen_fraction: float
+    performance: dict
+    trials: dict
+
+    def to_json(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, data: dict) -> CellResult:
+        return cls(**data)
+
+
+def parse_families(text: str | None) -> tuple[str, ...]:
+    """Returns the families of ``"latency,dropout"`` (None: all); ValueError listing them."""
+    if text is None:
+        return tuple(perturbations.FAMILIES)
+    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    for name in names:
+        if name not in perturbations.FAMILIES:
+            raise ValueError(
+                f"--families: unknown family {name!r}; allowed: {', '.join(perturbations.FAMILIES)}"
+            )
+    if not names:
+        raise ValueError("--families needs at least one family")
+    return names
+
+
+def parse_levels(text: str | None) -> tuple[int, ...] | None:
+    """Returns the level indices of ``"0,2,3"`` (None: every level of each family)."""
+    if text is None:
+        return None
+    try:
+        levels = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--levels {text!r} must be level numbers like 0,1,3") from None
+    if any(level < 0 for level in levels) or len(set(levels)) != len(levels):
+        raise ValueError(f"--levels {text!r} must be distinct level numbers >= 0")
+    return levels
+
+
+def level_label(level: dict) -> str:
+    """Returns a level's short name, e.g. ``latency_ms=50`` (``0`` for the level that sets
+    nothing)."""
+    if not any(level.values()):
+        return "0"
+    return ", ".join(f"{key.rsplit('.', 1)[-1]}={value}" for key, value in level.items())
+
+
+def source_run(source) -> RunConfig:
+    """Returns the configuration of the finished run in ``source`` whose networks and test stream
+    a transfer reads; ValueError in one line unless it was made by this version and its streams
+    and learning stages are finished with their files intact."""
+    source = pathlib.Path(source)
+    try:
+        state = json.loads((source / "state.json").read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"--reuse-from {source} is not a run folder ({error})") from None
+    if not isinstance(state, dict) or not isinstance(state.get("config"), dict):
+        raise ValueError(f"--reuse-from {source} is not a run folder (its state.json is not one)")
+    version = package_versions()["peoplebot-imitation"]
+    if state.get("version") != version:
+        raise ValueError(
+            f"--reuse-from {source} was made by peoplebot-imitation {state.get('version')}, this "
+            f"is {version}; it cannot be reused"
+        )
+    for stage in ("streams", "learning"):
+        if stage not in state.get("stages", {}):
+            raise ValueError(f"--reuse-from {source} has not finished its {stage} stage")
+        for name, digest in state.get("artifacts", {}).get(stage, {}).items():
+            path = source / name
+            if not path.is_file() or storage.file_digest(path) != digest:
+                raise ValueError(
+                    f"--reuse-from {source}: {name} is missing or changed since its run; it "
+                    "cannot be reused"
+                )
+    return RunConfig.from_dict(state["config"])
+
+
+def plan(base: RunConfig, families, levels=None) -> tuple[list, list[TransferCell]]:
+    """Returns ``(rows, cells)``: per family and chosen level ``(family, index, level)`` and the
+    distinct cells to run (a level equal to the base's perturbations is the ``baseline`` cell).
+    ``base``'s own perturbations (a preset) stay under every level."""
+    rows, cells = [], {}
+    for family in families:
+        grid = perturbations.FAMILIES[family]
+        chosen = range(len(grid)) if levels is None else [i for i in levels if i < len(grid)]
+        for index in chosen:
+            level = grid[index]
+            config = base.replace({f"perturbations.{k}": v for k, v in level.items()})
+            name = "baseline" if config == base else f"{family}-{index}"
+            rows.append((family, index, level))
+            cells.setdefault(name, TransferCell(name, tuple(level.items()), config))
+    return rows, list(cells.values())
+
+
+def cell_name(base: RunConfig, family: str, index: int) -> str:
+    """Returns the name of the cell that holds ``family``'s level ``index``."""
+    level = perturbations.FAMILIES[family][index]
+    config = base.replace({f"perturbations.{k}": v for k, v in level.items()})
+    return "baseline" if config == base else f"{family}-{index}"
+
+
+def run_cell(
+    cell: TransferCell, source: pathlib.Path, folder: pathlib.Path, fresh: bool = False
+) -> CellResult:
+    """Runs (or resumes) one cell in ``folder`` with the networks and test stream of ``source``
+    (``fresh``: what an earlier run wrote there is removed first); returns its numbers."""
+    config = cell.config
+    state = RunState(folder, config.to_dict(), fresh=fresh)
+    try:
+        if state.done("performance") and not state.intact("performance"):
+            state.forget(["performance"])
+        if not state.done("recognition"):
+            state.finish("recognition", _recognition(config, source))
+        if not state.done("performance"):
+            rates = trials.success_rates(config, folder, networks_from=source)
+            state.finish(
+                "performance", _performance_json(rates), [folder / "performance_trials.json"]
+            )
+        rec, perf = state.result("recognition"), state.result("performance")
+        return CellResult(rec["recognition"], rec["seen_fraction"], perf["rates"], perf["trials"])
+    finally:
+        state.close()
+
+
+def _recognition(config: RunConfig, source: pathlib.Path) -> dict:
+    """Returns correct recognition per read-out and word as the cell's student sees the teacher:
+    the test stream's first ``vision.test_steps`` steps in the 'truth' mode (under its
+    perception faults), the camera otherwise."""
+    dt = config.task.control_timestep
+    seed = config.seed * 2 + 3
+    if config.vision.mode == "truth":
+        stream = TeacherStream.load(source / "streams" / "test.npz")
+        observed = recognition.perturbed_truth(
+            stream, config.vision.test_steps, config.perturbations, dt, seed
+        )
+    else:
+        observed = recognition.watch_with_vision(
+            seed,
+            config.vision.test_steps,
+            config.vision.mode,
+            config.vision.width,
+            config.vision.height,
+            progress=False,
+            task=config.world_config(),
+            perturbations=config.perturbations,
+        )
+    encoder = encoding.VisionEncoder(half_side_m=ArenaGeometry().half_side_m)
+    models = {"paper": persistence.load(source / "network.npz")}
+    if config.hierarchical.enabled:
+        models["hierarchical"] = models["hierarchical_over_time"] = persistence.load(
+            source / "hierarchical.npz"
+        )
+    out = {}
+    for readout, model in models.items():
+        table = recognition.recognise_observed(
+            model,
+            observed,
+            encoder,
+            config.learning.motor_source,
+            dt,
+            over_time=readout == "hierarchical_over_time",
+        ).vision
+        out[readout] = {word: table.correct(word) for word in WORDS}
+    return {"recognition": out, "seen_fraction": float(observed.seen.mean())}
+
+
+def _performance_json(rates: dict) -> dict:
+    """Returns success rates and trial counts per policy and row, as JSON values."""
+    out = {"rates": {}, "trials": {}}
+    for row, policies in rates.items():
+        for policy, rate in policies.items():
+            if rate is not None:
+                out["rates"].setdefault(policy, {})[row] = rate.success_rate
+                out["trials"].setdefault(policy, {})[row] = rate.trials
+    return out
+
+
+def envelope(levels: list, results: list[CellResult]) -> dict:
+    """Returns, per policy and word, the largest level (its label) up to which every level
+    succeeds at least ``ENVELOPE_RATE`` of the time, or None when level 0 already fails;
+    ``levels`` and ``results`` in the family's order."""
+    out = {}
+    for policy in POLICIES:
+        for word in WORDS:
+            largest = None
+            for level, result in zip(levels, results, strict=True):
+                rate = result.performance.get(policy, {}).get(word)
+                if rate is None or rate < ENVELOPE_RATE:
+                    break
+                largest = level_label(level)
+            if any(word in r.performance.get(policy, {}) for r in results):
+                out.setdefault(policy, {})[word] = largest
+    return out
+
+
+def transfer(
+    source,
+    out,
+    *,
+    families=None,
+    levels=None,
+    vision: str | None = None,
+    base_perturbations: perturbations.PerturbationConfig | None = None,
+    changes: dict | None = None,
+    fresh: bool = False,
+) -> dict:
+    """Tests the networks of the finished run in ``source`` under each family's levels (see the
+    module notes) in ``out``; returns the summary (what ``transfer.json`` holds).
+
+    ``vision``: the vision mode (default the source's); ``base_perturbations``: perturbations
+    under every level (a preset; default none); ``changes``: other dotted config keys (trials,
+    trial seconds, vision test steps, workers); ``fresh``: every cell starts over (a cell made
+    with other settings is refused without it)."""
+    source, out = pathlib.Path(source), pathlib.Path(out)
+    base = source_run(source).replace(
+        {"videos.enabled": False, **({"vision.mode": vision} if vision else {}), **(changes or {})}
+    )
+    if base_perturbations is not None:
+        base = dataclasses.replace(base, perturbations=base_perturbations)
+    families = parse_families(None) if families is None else tuple(families)
+    rows, cells = plan(base, families, levels)
+    (out / "cells").mkdir(parents=True, exist_ok=True)
+    results = {}
+    for k, cell in enumerate(cells):
+        print(f"[transfer] cell {k + 1}/{len(cells)}: {cell.name}")
+        results[cell.name] = run_cell(cell, source, out / "cells" / cell.name, fresh)
+    summary = _summary(source, base, families, rows, results)
+    storage.write_json(out / "transfer.json", summary)
+    storage.write_text(out / "transfer.md", markdown(summary))
+    figures(summary, out / "figures")
+    return summary
+
+
+def _summary(source, base: RunConfig, families, rows, results: dict) -> dict:
+    per_family = {}
+    for family in families:
+        mine = [(index, level) for f, index, level in rows if f == family]
+        cells = [results[cell_name(base, family, index)] for index, _ in mine]
+        per_family[family] = {
+            "levels": [
+                {
+                    "index": index,
+                    "label": level_label(level),
+                    "settings": level,
+                    "cell": cell_name(base, family, index),
+                    **cell.to_json(),
+                }
+                for (index, level), cell in zip(mine, cells, strict=True)
+            ],
+            "envelope": envelope([level for _, level in mine], cells),
+        }
+    return {
+        "version": SUMMARY_VERSION,
+        "source": str(source),
+        "vision": base.vision.mode,
+        "envelope_rate": ENVELOPE_RATE,
+        "base_perturbations": base.to_dict()["perturbations"],
+        "trials_per_row": base.performance.trials,
+        "recognition_steps": base.vision.test_steps,
+        "families": per_family,
+        "versions": package_versions(),
+    }
+
+
+def _pct(value) -> str:
+    return "-" if value is None else f"{100 * value:.0f}%"
+
+
+def markdown(summary: dict) -> str:
+    """Returns ``transfer.md``: the operating envelope, then per family its levels' numbers."""
+    lines = [
+        f"# Transfer: {summary['source']} ({summary['vision']} vision)",
+        "",
+        f"{summary['trials_per_row']} trials per row and policy; recognition on "
+        f"{summary['recognition_steps']} watched steps (the hierarchical associator over time, "
+        "or the paper's network without it); 'seen': steps the teacher's pose was known. "
+        "Perturbations: docs/transfer.md.",
+        "",
+        f"## Operating envelope (largest level with success >= {100 * ENVELOPE_RATE:.0f}%)",
+        "",
+        "| family | " + " | ".join(f"{p} {w}" for p in POLICIES for w in WORDS) + " |",
+        "|---|" + "---|" * (len(POLICIES) * len(WORDS)),
+    ]
+    for family, data in summary["families"].items():
+        cells = [
+            str(data["envelope"].get(p, {}).get(w, "-") or "none") for p in POLICIES for w in WORDS
+        ]
+        lines.append(f"| {family} | " + " | ".join(cells) + " |")
+    for family, data in summary["families"].items():
+        lines += [
+            "",
+            f"## {family}",
+            "",
+            "| level | seen | recognition go / pick / lift | "
+            + " | ".join(f"{p} go / pick / lift" for p in POLICIES)
+            + " |",
+            "|---|---|---|" + "---|" * len(POLICIES),
+        ]
+        for level in data["levels"]:
+            rec = level["recognition"].get("hierarchical_over_time") or level["recognition"].get(
+                "paper", {}
+            )
+            perf = [
+                " / ".join(_pct(level["performance"].get(p, {}).get(w)) for w in WORDS)
+                for p in POLICIES
+            ]
+            lines.append(
+                f"| {level['label']} | {_pct(level['seen_fraction'])} | "
+                + " / ".join(_pct(rec.get(w)) for w in WORDS)
+                + " | "
+                + " | ".join(perf)
+                + " |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
+    """Draws ``<family>.png`` per family: success per policy and word (left) and correct
+    recognition per read-out and word (right) against the level; returns the paths."""
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = []
+    styles = {"go": "-", "pick": "--", "lift": ":"}
+    colours = {"student": "C0", "student_hierarchical": "C2", "teacher": "C7"}
+    readout_colours = {"paper": "C0", "hierarchical": "C1", "hierarchical_over_time": "C2"}
+    for family, data in summary["families"].items():
+        levels = data["levels"]
+        x = list(range(len(levels)))
+        fig, (left, right) = plt.subplots(1, 2, figsize=(14, 4.5), sharey=True)
+        for policy in POLICIES:
+            for word in WORDS:
+                y = [lv["performance"].get(policy, {}).get(word) for lv in levels]
+                if any(v is not None for v in y):
+                    left.plot(
+                        x,
+                        [float("nan") if v is None else v for v in y],
+                        styles[word],
+                        marker="o",
+                        color=colours[policy],
+                        label=f"{policy} {word}",
+                    )
+        for readout, colour in readout_colours.items():
+            for word in WORDS:
+                y = [lv["recognition"].get(readout, {}).get(word) for lv in levels]
+                if any(v is not None for v in y):
+                    right.plot(
+                        x,
+                        [float("nan") if v is None else v for v in y],
+                        styles[word],
+                        marker="o",
+                        color=colour,
+                        label=f"{readout} {word}",
+                    )
+        keys = [key.rsplit(".", 1)[-1] for key in levels[-1]["settings"]]
+        ticks = [
+            " / ".join(str(v) for v in lv["settings"].values()) if lv["label"] != "0" else "0"
+            for lv in levels
+        ]
+        for axis, title in ((left, "performing: success rate"), (right, "recognition: correct")):
+            axis.axhline(ENVELOPE_RATE, color="k", lw=0.5, alpha=0.5)
+            axis.set_xticks(x, ticks, fontsize=8)
+            axis.set_xlabel(" / ".join(keys), fontsize=8)
+            axis.set_ylim(-0.05, 1.05)
+            axis.set_title(title)
+            axis.legend(fontsize=6, ncol=1, loc="center left", bbox_to_anchor=(1.0, 0.5))
+        fig.suptitle(f"{family} ({summary['vision']} vision)")
+        fig.tight_layout()
+        path = folder / f"{family}.png"
+        tmp = storage.temporary_name(path)
+        fig.savefig(tmp, format="png", dpi=90)
+        plt.close(fig)
+        paths.append(storage.commit(tmp, path))
+    return paths

@@ -1,0 +1,115 @@
+"""``peoplebot transfer`` end to end at a tiny scale: the report, the envelope, resuming."""
+
+import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
+
+# isort: split
+import json
+
+import pytest
+
+from associator import encoding
+from imitation import reproduce, transfer, trials
+from imitation.cli import main
+from imitation.config import RunConfig
+from imitation.runstate import RunState
+from perception.wallframe import ArenaGeometry
+
+ENCODER = encoding.VisionEncoder(half_side_m=ArenaGeometry().half_side_m)
+TINY = {
+    "learning.train_steps": 1500,
+    "learning.test_steps": 600,
+    "vision.test_steps": 50,
+    "performance.trials": 1,
+    "performance.trial_seconds": 5.0,
+    "hierarchical.enabled": False,
+    "videos.enabled": False,
+    "workers": 1,
+}
+
+
+@pytest.fixture(scope="module")
+def trained_run(tmp_path_factory):
+    """Returns a run folder with the streams and learning stages of a tiny run finished (what a
+    transfer reads)."""
+    folder = tmp_path_factory.mktemp("source")
+    config = RunConfig.quick().replace(TINY)
+    state = RunState(folder, config.to_dict())
+    streams = reproduce.stage_streams(config, folder)
+    state.finish(
+        "streams",
+        {k: v.to_json() for k, v in streams.items()},
+        [folder / v.path for v in streams.values()],
+    )
+    learned = reproduce.stage_learning(config, folder, ENCODER)
+    state.finish("learning", learned.to_json(), [folder / learned.paper.network])
+    state.close()
+    return folder
+
+
+def test_transfer_reports_each_level_and_the_envelope_and_resumes(
+    trained_run, tmp_path, monkeypatch
+):
+    out = tmp_path / "transfer"
+    argv = [
+        "transfer",
+        "--reuse-from",
+        str(trained_run),
+        "--out",
+        str(out),
+        "--families",
+        "latency,command_latency",
+        "--levels",
+        "0,3",
+    ]
+    assert main(argv) == 0
+    summary = json.loads((out / "transfer.json").read_text())
+    latency = summary["families"]["latency"]
+    assert [level["label"] for level in latency["levels"]] == ["0", "latency_ms=200"]
+    assert [level["cell"] for level in latency["levels"]] == ["baseline", "latency-3"]
+    baseline = latency["levels"][0]
+    assert set(baseline["performance"]) == {"student", "teacher"}
+    assert baseline["trials"]["teacher"]["lift"] == 1
+    assert 0 <= baseline["recognition"]["paper"]["go"] <= 1
+    assert baseline["seen_fraction"] == 1.0
+    assert latency["levels"][1]["seen_fraction"] < 1.0  # the first two steps are not yet seen
+    # The envelope: the largest level up to which a word succeeds >= 80% (None: level 0 fails).
+    levels, results = (
+        [{}, {"perception.latency_ms": 200}],
+        [
+            transfer.CellResult({}, 1.0, {"teacher": {"lift": 1.0, "go": 0.5}}, {}),
+            transfer.CellResult({}, 1.0, {"teacher": {"lift": 0.8, "go": 1.0}}, {}),
+        ],
+    )
+    assert transfer.envelope(levels, results)["teacher"] == {"go": None, "lift": "latency_ms=200"}
+    for family in ("latency", "command_latency"):
+        assert (out / "figures" / f"{family}.png").stat().st_size > 10_000
+        assert set(summary["families"][family]["envelope"]) == {"student", "teacher"}
+    text = (out / "transfer.md").read_text()
+    assert "Operating envelope" in text and "latency_ms=200" in text
+
+    # A rerun keeps every finished cell; a cell whose trials file was lost runs its trials again.
+    before = (out / "transfer.json").read_text()
+    (out / "cells" / "latency-3" / "performance_trials.json").unlink()
+    calls = []
+    original = trials.success_rates
+    monkeypatch.setattr(
+        trials, "success_rates", lambda *a, **k: calls.append(a[1].name) or original(*a, **k)
+    )
+    assert main(argv) == 0
+    assert calls == ["latency-3"]
+    assert (out / "transfer.json").read_text() == before
+
+    # Other settings in a finished cell are refused in one line; --fresh starts over.
+    assert main([*argv, "--trials", "2"]) == 2
+    assert main([*argv, "--trials", "2", "--fresh"]) == 0
+    again = json.loads((out / "transfer.json").read_text())
+    assert again["families"]["latency"]["levels"][0]["trials"]["teacher"]["lift"] == 2
+
+
+def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
+    assert main(["transfer", "--reuse-from", str(tmp_path), "--out", str(tmp_path / "t")]) == 2
+    assert "is not a run folder" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="unknown family 'nope'; allowed: pose_noise"):
+        transfer.parse_families("nope")
+    with pytest.raises(ValueError, match="--levels"):
+        transfer.parse_levels("a,1")
