@@ -174,4 +174,5 @@ def test_board_is_found_and_its_markers_are_not_robot_markers():
     np.testing.assert_allclose(steps, 1000.0 * DEFAULT_BOARD.square_m * 8.0, atol=0.5)
     dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, layout.DICTIONARY_NAME))
     _, robot_ids, _ = cv2.aruco.ArucoDetector(dictionary).detectMarkers(image)
-    assert robot_ids is None
+    # OpenCV 5.0 answers None when it finds no marker, 5.1 an empty array.
+    assert robot_ids is None or len(robot_ids) == 0
