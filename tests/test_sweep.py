@@ -180,20 +180,17 @@ def test_a_rerun_skips_finished_cells(local_sweep, monkeypatch):
     assert summary["counts"] == {"finished": 0, "skipped": 2, "failed": 0}
 
 
-def test_a_cell_whose_worker_dies_is_retried_and_completes(tmp_path, monkeypatch):
-    marker = tmp_path / "died-once"
-    monkeypatch.setenv(sweep.DIE_ONCE_ENV, str(marker))
-    summary = sweep.sweep(TINY, (2,), [], tmp_path / "out", workers=1, progress=False)
-    assert marker.exists(), "the first attempt should have died"
-    assert summary["counts"] == {"finished": 1, "skipped": 0, "failed": 0}
-    assert summary["cells"][0]["results"]["seed"] == 2
-
-
-def test_a_two_node_cluster_runs_cells_on_both_nodes(tmp_path):
+def test_a_two_node_cluster_runs_cells_on_both_nodes_and_retries_a_dying_worker(
+    tmp_path, monkeypatch
+):
     """Two nodes of one CPU each on this machine (``ray.cluster_utils.Cluster``): a sweep joined by
-    address runs its two cells at once, one on each node."""
+    address runs its two cells at once, one on each node; the first cell attempt to start dies
+    (``DIE_ONCE_ENV``: ``os._exit`` in the worker), Ray retries it and both cells finish."""
     import ray
     from ray.cluster_utils import Cluster
+
+    marker = tmp_path / "died-once"
+    monkeypatch.setenv(sweep.DIE_ONCE_ENV, str(marker))
 
     cluster = Cluster(
         initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False}
@@ -207,6 +204,8 @@ def test_a_two_node_cluster_runs_cells_on_both_nodes(tmp_path):
     finally:
         ray.shutdown()
         cluster.shutdown()
-    assert summary["counts"]["finished"] == 2
+    assert marker.exists(), "the first attempt should have died"
+    assert summary["counts"] == {"finished": 2, "skipped": 0, "failed": 0}
+    assert sorted(c["results"]["seed"] for c in summary["cells"]) == [3, 4]
     nodes = {c["node"] for c in summary["cells"]}
     assert len(nodes) == 2 and None not in nodes
