@@ -134,6 +134,26 @@ class DetectorConfig:
             )
 
 
+def aruco_detector(config: DetectorConfig = DetectorConfig()) -> cv2.aruco.ArucoDetector:
+    """Returns an OpenCV ArUco detector of ``DICTIONARY_NAME`` set up as ``config`` says (every id
+    of the dictionary; callers keep the ids they expect)."""
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, DICTIONARY_NAME))
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = CORNER_REFINEMENTS[config.corner_refinement]
+    params.cornerRefinementWinSize = config.subpix_window_px
+    params.minMarkerPerimeterRate = config.min_marker_perimeter_rate
+    params.adaptiveThreshConstant = config.threshold_constant
+    params.minDistanceToBorder = config.min_distance_to_border_px
+    params.perspectiveRemovePixelPerCell = config.bit_pixels_per_cell
+    params.perspectiveRemoveIgnoredMarginPerCell = config.bit_margin_per_cell
+    params.errorCorrectionRate = config.error_correction_rate
+    windows = tuple(config.threshold_windows_px)
+    params.adaptiveThreshWinSizeMin = windows[0]
+    params.adaptiveThreshWinSizeMax = windows[-1]
+    params.adaptiveThreshWinSizeStep = windows[1] - windows[0] if len(windows) > 1 else 1
+    return cv2.aruco.ArucoDetector(dictionary, params)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class MarkerDetection:
     """One detected marker.
@@ -251,20 +271,7 @@ class MarkerDetector:
                     f"expected_ids {unknown} are not in the layout; allowed: {sorted(self._by_id)}"
                 )
         self.expected_ids = frozenset(expected)
-        params = cv2.aruco.DetectorParameters()
-        params.cornerRefinementMethod = CORNER_REFINEMENTS[config.corner_refinement]
-        params.cornerRefinementWinSize = config.subpix_window_px
-        params.minMarkerPerimeterRate = config.min_marker_perimeter_rate
-        params.adaptiveThreshConstant = config.threshold_constant
-        params.minDistanceToBorder = config.min_distance_to_border_px
-        params.perspectiveRemovePixelPerCell = config.bit_pixels_per_cell
-        params.perspectiveRemoveIgnoredMarginPerCell = config.bit_margin_per_cell
-        params.errorCorrectionRate = config.error_correction_rate
-        windows = tuple(config.threshold_windows_px)
-        params.adaptiveThreshWinSizeMin = windows[0]
-        params.adaptiveThreshWinSizeMax = windows[-1]
-        params.adaptiveThreshWinSizeStep = windows[1] - windows[0] if len(windows) > 1 else 1
-        self._detector = cv2.aruco.ArucoDetector(self._dictionary, params)
+        self._detector = aruco_detector(config)
 
     def placement(self, marker_id: int) -> MarkerPlacement:
         """Returns the layout entry of ``marker_id``; raises ValueError for an unknown id."""
