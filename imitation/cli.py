@@ -88,6 +88,7 @@ REPRODUCE_OPTIONS = {
     "train_steps": "learning.train_steps",
     "test_steps": "learning.test_steps",
     "vision_test_steps": "vision.test_steps",
+    "self_localisation": "vision.self_localisation",
     "trials": "performance.trials",
     "trial_seconds": "performance.trial_seconds",
     "workers": "workers",
@@ -121,8 +122,11 @@ def _cmd_reproduce(args) -> int:
     from imitation.reproduce import run
 
     config = reproduce_config(args)
+    vision = config.vision.mode
+    if vision == "head" and config.vision.self_localisation == "odometry":
+        vision = "head_odometry"
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
-        f"{config.vision.mode}-{config.learning.motor_source}-seed{config.seed}"
+        f"{vision}-{config.learning.motor_source}-seed{config.seed}"
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
@@ -352,6 +356,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_int,
         default=None,
         help="steps watched through the camera for recognition (camera modes)",
+    )
+    rep.add_argument(
+        "--self-localisation",
+        choices=("landmarks", "odometry"),
+        default=None,
+        help="the head mode's own pose: wall landmarks and odometry from an unknown start "
+        "(default) or odometry alone from the known start",
     )
     rep.add_argument(
         "--trials", type=_positive_int, default=None, help="random starts per word (50)"

@@ -110,10 +110,12 @@ def watch_with_vision(
     height: int = 240,
     progress: bool = True,
     task: TaskConfig = TaskConfig(),
+    self_localisation: str = "landmarks",
 ) -> ObservedStream:
     """Runs the environment (``task``, with the teacher) with the teacher looping and the student
     watching through its camera (``vision_mode`` 'overhead' or 'head', frames of ``width`` x
-    ``height`` pixels); returns what it saw beside the truth."""
+    ``height`` pixels; the head mode's own pose by ``self_localisation``, see
+    ``observers.StudentVision``); returns what it saw beside the truth."""
     if vision_mode not in ("overhead", "head"):
         raise ValueError(f"vision_mode must be 'overhead' or 'head', got {vision_mode!r}")
     if n_steps <= 0:
@@ -123,7 +125,9 @@ def watch_with_vision(
     )
     timestep = env.reset()
     calibration = Calibration(env.physics, width, height)
-    vision = StudentVision(vision_mode, calibration, watch_teacher=True)
+    vision = StudentVision(
+        vision_mode, calibration, watch_teacher=True, self_localisation=self_localisation
+    )
     start = np.asarray(timestep.observation["student_pose"])
     vision.reset(start, timestep.observation["student_wheel_angles"])
     spec = env.action_spec()

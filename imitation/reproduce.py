@@ -185,6 +185,7 @@ def stage_recognition(config: RunConfig, folder: pathlib.Path, model, encoder) -
             config.vision.width,
             config.vision.height,
             task=config.task_config(),
+            self_localisation=config.vision.self_localisation,
         )
 
         def on_camera(network, **readout):

@@ -31,6 +31,7 @@ from perception import layout as marker_layout
 from perception.markers import DetectorConfig
 from perception.pantilt import PanTiltLimits, aim_at, head_camera
 from perception.pipeline import Tracker
+from perception.pose import wrap_radians
 from perception.wallframe import wrap_degrees
 
 CATEGORIES = ("anywhere", "near_wall", "corner", "docked")
@@ -219,47 +220,69 @@ def sequence_timing(
     observable renders each control step while the teacher loops, and the student's vision
     (:class:`~imitation.observers.StudentVision`, ``Tracker.update`` searching each frame)
     follows the robots - both from the overhead camera; the teacher from the head camera, with the
-    student's odometry and the pan-tilt controller steering the head. Returns per viewpoint the
-    steps/s without the camera, with it, and with tracking, the render and tracking times per
-    frame, tracking's share of the render time and the tracked teacher's position error. Tracking
-    is timed around each vision update; rendering is the environment step's time with the camera
-    less its time without."""
+    student's own pose from odometry (``head``, from its known start) or from the wall landmarks
+    (``head_landmarks``, from an unknown start, the head shared between the teacher and the
+    landmarks). Returns per viewpoint the steps/s without the camera, with it, and with tracking,
+    the render and tracking times per frame, tracking's share of the render time and the tracked
+    teacher's position error; the head viewpoints also the student's own-pose errors (from the
+    first step it has a pose) and ``head_landmarks`` the steps to its first pose and the glances.
+    Tracking is timed around each vision update; rendering is the environment step's time with
+    the camera less its time without."""
 
-    def run_loop(view, track):  # returns env.step seconds, vision seconds, position errors
+    def run_loop(view, track, self_localisation="odometry"):
         env = load(seed=seed, cameras=(view,) if view else (), width=width, height=height)
         timestep = env.reset()
         vision = None
         if track:
-            vision = StudentVision(view, Calibration(env.physics, width, height))
+            vision = StudentVision(
+                view,
+                Calibration(env.physics, width, height),
+                self_localisation=self_localisation,
+            )
             vision.reset(
                 timestep.observation["student_pose"], timestep.observation["student_wheel_angles"]
             )
         spec, dt = env.action_spec(), env.task.control_timestep
-        errors = []
+        errors, own_errors, first_pose = [], [], None
         step_s = track_s = 0.0
         for i in range(n_steps):
             if vision is not None:
                 t0 = time.perf_counter()
-                pose = vision.update(timestep.observation, i * dt, dt)["teacher"]
+                poses = vision.update(timestep.observation, i * dt, dt)
                 track_s += time.perf_counter() - t0
+                pose, own = poses["teacher"], poses["student"]
                 if pose is not None:
                     truth = timestep.observation["teacher_pose"]
                     errors.append(100 * math.hypot(pose[0] - truth[0], pose[1] - truth[1]))
+                if own is not None:
+                    first_pose = i if first_pose is None else first_pose
+                    truth = timestep.observation["student_pose"]
+                    own_errors.append(
+                        (
+                            100 * math.hypot(own[0] - truth[0], own[1] - truth[1]),
+                            abs(math.degrees(float(wrap_radians(own[2] - truth[2])))),
+                        )
+                    )
             head = (0.0, 0.0) if vision is None else vision.head_command
             action = make_action(spec, (0.0, 0.0), head)
             t0 = time.perf_counter()
             timestep = env.step(action)
             step_s += time.perf_counter() - t0
         env.close()
-        return step_s, track_s, errors
+        glances = getattr(getattr(vision, "gaze", None), "glances_", None)
+        return step_s, track_s, errors, np.asarray(own_errors).reshape(-1, 2), first_pose, glances
 
-    physics_s, _, _ = run_loop(None, False)
+    physics_s = run_loop(None, False)[0]
     out = {"steps": n_steps}
-    for view in ("overhead", "head"):
-        render_s, track_s, errors = run_loop(view, True)
+    for view, method in (
+        ("overhead", "odometry"),
+        ("head", "odometry"),
+        ("head", "landmarks"),
+    ):
+        render_s, track_s, errors, own, first_pose, glances = run_loop(view, True, method)
         render_per_frame = (render_s - physics_s) / n_steps
         track_per_frame = track_s / n_steps
-        out[view] = {
+        row = {
             "steps_per_s_without_camera": n_steps / physics_s,
             "steps_per_s_with_camera": n_steps / render_s,
             "steps_per_s_with_camera_and_tracking": n_steps / (render_s + track_s),
@@ -269,4 +292,11 @@ def sequence_timing(
             "teacher_seen_fraction": len(errors) / n_steps,
             "tracked_teacher_position_error_cm": _stats(np.asarray(errors)),
         }
+        if view == "head":
+            row["own_position_error_cm"] = _stats(own[:, 0])
+            row["own_heading_error_deg"] = _stats(own[:, 1])
+        if method == "landmarks":
+            row["steps_to_first_own_pose"] = first_pose
+            row["glances"] = glances
+        out[view if method == "odometry" else "head_landmarks"] = row
     return out

@@ -60,10 +60,14 @@ def trial_plan(config: RunConfig, policies=None) -> list[PlannedTrial]:
 
 
 def student_environment(config: RunConfig):
-    """Returns the run's world with the student alone (and the overhead camera in that vision
-    mode), reset."""
+    """Returns the run's world with the student alone (and the overhead camera, or the head camera
+    when the head mode localises by landmarks), reset."""
     vision = config.vision
-    cameras = ("overhead",) if vision.mode == "overhead" else ()
+    cameras = ()
+    if vision.mode == "overhead":
+        cameras = ("overhead",)
+    elif vision.mode == "head" and vision.self_localisation == "landmarks":
+        cameras = ("head",)  # the student looks at the wall landmarks
     env = load(
         config.task_config(
             with_teacher=False, cameras=cameras, width=vision.width, height=vision.height
@@ -89,7 +93,12 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
             rng=rng,
             teacher_config=config.teacher,
         )
-    student_vision = StudentVision(config.vision.mode, calibration, watch_teacher=False)
+    student_vision = StudentVision(
+        config.vision.mode,
+        calibration,
+        watch_teacher=False,
+        self_localisation=config.vision.self_localisation,
+    )
     return performance.StudentAgent(
         model,
         word,

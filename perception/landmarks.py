@@ -32,7 +32,7 @@ import numpy as np
 
 from perception.camera import PinholeCamera
 from perception.layout import DICTIONARY_NAME, QUIET_ZONE_M, default_layout
-from perception.markers import DetectorConfig, aruco_detector, to_gray
+from perception.markers import DetectorConfig, MarkerDetector
 from perception.pantilt import HeadMount, PanTiltLimits, head_camera, head_camera_rotation
 from perception.pose import check_planar_pose, fit_planar_pose, quad_area_px, wrap_radians
 
@@ -325,25 +325,18 @@ class LandmarkLocator:
         self.intrinsics = intrinsics
         self.mount = mount
         self.config = config
-        self._detector = aruco_detector(detector_config)
+        self.detector = MarkerDetector(detector_config)
         self._corners = {m.marker_id: m.corners_world() for m in landmark_map.markers}
 
     def detect(self, image) -> list[tuple[int, np.ndarray]]:
         """Returns ``(marker_id, corners_px (4, 2))`` of each map marker found once in ``image``
         (an id found twice is dropped: one of the two is false)."""
-        corners, ids, _ = self._detector.detectMarkers(to_gray(image))
-        return self.select(
-            []
-            if ids is None
-            else [
-                (int(i), np.asarray(c, float).reshape(4, 2))
-                for i, c in zip(ids.ravel(), corners, strict=True)
-            ]
-        )
+        return self.select(self.detector.detect_all_corners(image))
 
     def select(self, found) -> list[tuple[int, np.ndarray]]:
         """Returns the map's markers among ``(marker_id, corners_px)`` detections (e.g. a shared
-        detection pass), ids found more than once dropped, sorted by id."""
+        pass, ``self.detector.detect_all_corners``), ids found more than once dropped, sorted by
+        id."""
         ids = [int(i) for i, _ in found]
         return sorted(
             (

@@ -279,8 +279,9 @@ class MarkerDetector:
             raise ValueError(f"unknown marker id {marker_id!r}; allowed: {sorted(self._by_id)}")
         return self._by_id[marker_id]
 
-    def detect_corners(self, image) -> list[tuple[int, np.ndarray]]:
-        """Returns ``(marker_id, corners_px (4, 2))`` for each expected marker found, no pose.
+    def detect_all_corners(self, image) -> list[tuple[int, np.ndarray]]:
+        """Returns ``(marker_id, corners_px (4, 2))`` for every marker of the dictionary found,
+        expected or not (one detection pass to share, e.g. with the wall landmarks), no pose.
 
         Args:
           image: the image (see :meth:`detect`).
@@ -294,8 +295,17 @@ class MarkerDetector:
         return [
             (int(i), np.asarray(c, dtype=float).reshape(4, 2) - offset)
             for i, c in zip(ids.ravel(), corners, strict=True)
-            if int(i) in self.expected_ids
         ]
+
+    def detect_corners(self, image, found=None) -> list[tuple[int, np.ndarray]]:
+        """Returns ``(marker_id, corners_px (4, 2))`` for each expected marker found, no pose.
+
+        Args:
+          image: the image (see :meth:`detect`); not read when ``found`` is given.
+          found: this image's :meth:`detect_all_corners`, from a shared pass.
+        """
+        found = self.detect_all_corners(image) if found is None else found
+        return [(i, c) for i, c in found if i in self.expected_ids]
 
     def detect(self, image, camera: PinholeCamera | None = None) -> tuple[MarkerDetection, ...]:
         """Returns the expected markers seen in ``image``, sorted by id, each with its pose.

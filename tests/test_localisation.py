@@ -19,6 +19,7 @@ from dm_control import mjcf
 from peoplebot_sim import cameras
 from peoplebot_sim.task import ImitationTask, TaskConfig
 from perception.camera import PinholeCamera
+from perception.gaze import GazeConfig, GazeController
 from perception.landmarks import (
     LandmarkLocator,
     LandmarkMap,
@@ -28,7 +29,7 @@ from perception.landmarks import (
     landmark_pan,
     read_landmark_map,
 )
-from perception.localisation import LocaliserConfig, SelfLocaliser
+from perception.localisation import LocalisationEstimate, LocaliserConfig, SelfLocaliser
 from perception.pantilt import head_camera
 from perception.pose import wrap_radians
 
@@ -354,3 +355,35 @@ def test_rendered_frames_initialise_the_filter_from_nothing(rendered_scene, land
     assert estimate.reinitialised and estimate.status == "tracking"
     position, heading = pose_error(estimate.pose, truth)
     assert position < 0.02 and heading < 0.5
+
+
+# -------------------------------------------------------------------------------- active gaze
+def test_gaze_shares_the_head_between_teacher_and_landmarks(landmark_map):
+    """Searching sweeps; performing alone looks at landmarks; watching follows the teacher until
+    the own position's sigma passes the glance threshold, glances at the landmarks, and comes back
+    when it has shrunk (or after the longest glance)."""
+    config = GazeConfig(glance_sigma_m=0.03, glance_max_steps=4)
+    gaze = GazeController(landmark_map, INTRINSICS, config)
+    pose = np.array([0.0, -1.0, math.pi / 2])  # facing the table, the top wall 3 m ahead
+    teacher = (0.0, 0.5)
+
+    def estimate(sigma_m):
+        return LocalisationEstimate(pose, np.diag([sigma_m**2, sigma_m**2, 1e-4]), "tracking")
+
+    searching = LocalisationEstimate(None, None, "searching")
+    pans = [gaze.step(searching, None, 0.1).pan_deg for _ in range(5)]
+    assert gaze.target_ == "search" and pans[-1] != pans[0]
+    for _ in range(30):
+        command = gaze.step(estimate(0.01), None, 0.1, watching=False)
+    assert gaze.target_ == "landmarks"
+    best, n = landmark_pan(landmark_map, INTRINSICS, pose, config.landmark_tilt_deg)
+    assert n >= 2 and command.pan_deg == pytest.approx(best)
+    assert command.tilt_deg == pytest.approx(config.landmark_tilt_deg)
+    gaze.step(estimate(0.01), teacher, 0.1)
+    assert gaze.target_ == "teacher"
+    gaze.step(estimate(0.05), teacher, 0.1)
+    assert gaze.target_ == "landmarks" and gaze.glances_ == 1
+    gaze.step(estimate(0.01), teacher, 0.1)  # sigma below half the threshold: back
+    assert gaze.target_ == "teacher"
+    targets = [gaze.step(estimate(0.05), teacher, 0.1) and gaze.target_ for _ in range(7)]
+    assert targets[:5] == ["landmarks"] * 5 and "teacher" in targets[5:]
