@@ -13,7 +13,7 @@ from perception.landmarks import (
     LandmarkMap,
     LandmarkMarker,
     LocatorConfig,
-    landmark_pan,
+    landmark_view,
     read_landmark_map,
 )
 from perception.localisation import LocalisationEstimate, LocaliserConfig, SelfLocaliser
@@ -86,7 +86,7 @@ __all__ = [
     "head_camera",
     "infer_directive",
     "infer_directives",
-    "landmark_pan",
+    "landmark_view",
     "look_at_rotation",
     "read_landmark_map",
     "wall_to_world",

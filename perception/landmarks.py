@@ -440,26 +440,36 @@ class LandmarkLocator:
         return starts
 
 
-def landmark_pan(
+def landmark_view(
     landmark_map: LandmarkMap,
     intrinsics: PinholeCamera,
     pose,
-    tilt_deg: float,
+    tilts_deg=(-12.0, -24.0),
     *,
     limits: PanTiltLimits = PanTiltLimits(),
     mount: HeadMount = HeadMount(),
     step_deg: float = 7.0,
-) -> tuple[float, int]:
-    """Returns ``(pan_deg, n)``: the pan within the head's limits, on a ``step_deg`` grid, that
-    should show the most landmarks (``LandmarkMap.visible``) from ``pose`` (x_m, y_m, yaw_rad) at
-    ``tilt_deg``, and how many; ties go to the pan nearest straight ahead."""
+) -> tuple[float, float, int]:
+    """Returns ``(pan_deg, tilt_deg, n)``: the head angles, pan within the limits on a
+    ``step_deg`` grid and tilt one of ``tilts_deg``, that should show the most landmarks
+    (``LandmarkMap.visible``) from ``pose`` (x_m, y_m, yaw_rad), and how many; ties go to the pan
+    nearest straight ahead, then to the first tilt. Near walls need the lower tilt (the landmarks
+    hang low), far ones the higher."""
     check_planar_pose(pose, "pose")
     if not (math.isfinite(step_deg) and step_deg > 0):
         raise ValueError(f"step_deg must be > 0 degrees, got {step_deg!r}")
+    tilts = tuple(float(t) for t in tilts_deg)
+    if not tilts or not all(limits.tilt_min_deg <= t <= limits.tilt_max_deg for t in tilts):
+        raise ValueError(
+            f"tilts_deg must be one or more tilts within [{limits.tilt_min_deg}, "
+            f"{limits.tilt_max_deg}] degrees, got {tilts_deg!r}"
+        )
     pans = np.arange(limits.pan_min_deg, limits.pan_max_deg + 1e-9, step_deg)
-    best = (0, 0.0)
+    best = (0, 0.0, tilts[0])
     for pan in sorted(pans, key=abs):
-        n = len(landmark_map.visible(head_camera(intrinsics, pose, float(pan), tilt_deg, mount)))
-        if n > best[0]:
-            best = (n, float(pan))
-    return best[1], best[0]
+        for tilt in tilts:
+            camera = head_camera(intrinsics, pose, float(pan), tilt, mount)
+            n = len(landmark_map.visible(camera))
+            if n > best[0]:
+                best = (n, float(pan), tilt)
+    return best[1], best[2], best[0]

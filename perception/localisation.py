@@ -17,12 +17,15 @@ Measurement model: a :class:`~perception.landmarks.LandmarkFix`, the pose fitted
 landmark's corners at once, with the fit's covariance (corner noise ``corner_sigma_px``) plus a
 floor ``fix_floor_sigma`` for what the corner noise does not cover (the head's calibration, the
 robot's rocking). Innovation ``nu = fix - x`` (yaw wrapped), ``S = P + R``; a fix whose normalised
-innovation squared ``nu^T S^-1 nu`` exceeds ``gate_nis`` is rejected (a Mahalanobis gate).
+innovation squared ``nu^T S^-1 nu`` exceeds ``gate_nis`` is rejected (a Mahalanobis gate), and
+the state's covariance is inflated by ``reject_inflation`` (fading memory: the wheels may have
+slipped).
 
 Without a known start the filter is ``searching`` until a fix from at least two landmarks (no
 prior: :meth:`LandmarkLocator.locate` tries every IPPE start) initialises it. A kidnapping (the robot
 moved by hand, or slipping against a wall) shows as fixes rejected in a row: after
-``reinit_after`` of them the filter re-initialises from the latest fix.
+``reinit_after`` of them the filter re-initialises from the latest image: a fresh multi-landmark
+fit, or else the latest fix (fitted from the prediction, so even one landmark's flip is resolved).
 """
 
 from __future__ import annotations
@@ -54,6 +57,9 @@ class LocaliserConfig:
         freedom: 16.27 is its 99.9% point).
       reinit_after: rejected fixes in a row that re-initialise the filter from the latest fix.
       init_inflation: a fix's covariance is multiplied by this when it initialises the filter.
+      reject_inflation: the state's covariance is multiplied by this at each rejected fix (1
+        keeps it); a run of consistent fixes the odometry contradicts then passes the gate even
+        from a single landmark, which cannot re-initialise the filter.
     """
 
     k_distance: float = 0.02
@@ -65,6 +71,7 @@ class LocaliserConfig:
     gate_nis: float = 16.27
     reinit_after: int = 5
     init_inflation: float = 4.0
+    reject_inflation: float = 2.0
 
     def __post_init__(self):
         for field in dataclasses.fields(self):
@@ -83,6 +90,8 @@ class LocaliserConfig:
                     raise ValueError(
                         f"{field.name} must be >= 0 (gate, inflation > 0), got {value!r}"
                     )
+                if field.name == "reject_inflation" and v < 1:
+                    raise ValueError(f"reject_inflation must be >= 1, got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -98,6 +107,9 @@ class LocalisationEstimate:
         re-initialises the filter counts as accepted.
       nis: the fix's normalised innovation squared (NaN without a fix or while searching).
       reinitialised: the filter was (re)initialised from ``fix`` this step.
+      rejections: fixes rejected in a row so far (a sign the pose may be wrong).
+      steps_since_fix: control steps since the last accepted fix (0 this step; counted from the
+        start while searching).
     """
 
     pose: np.ndarray | None
@@ -107,6 +119,8 @@ class LocalisationEstimate:
     accepted: bool | None = None
     nis: float = float("nan")
     reinitialised: bool = False
+    rejections: int = 0
+    steps_since_fix: int = 0
 
     @property
     def marker_ids(self) -> tuple[int, ...]:
@@ -160,6 +174,7 @@ class SelfLocaliser:
                 )
             self.covariance_ = covariance
         self.rejections_ = 0
+        self.steps_since_fix_ = 0
         self._wheels = None
         if wheel_angles is not None:
             self._wheels = self._check_wheels(wheel_angles)
@@ -171,11 +186,15 @@ class SelfLocaliser:
 
     def estimate(self, **record) -> LocalisationEstimate:
         """Returns the filter's present state as a record (``record``: this step's fix fields)."""
+        if record.get("accepted"):
+            self.steps_since_fix_ = 0
         return LocalisationEstimate(
             None if self.pose_ is None else self.pose_.copy(),
             None if self.covariance_ is None else self.covariance_.copy(),
             self.status,
             **record,
+            rejections=self.rejections_,
+            steps_since_fix=self.steps_since_fix_,
         )
 
     @staticmethod
@@ -237,6 +256,7 @@ class SelfLocaliser:
             ids are ignored).
           pan_deg, tilt_deg: the head's measured angles for the image.
         """
+        self.steps_since_fix_ += 1
         if self.pose_ is None:
             fix = self.locator.locate(found, pan_deg, tilt_deg)
             if fix is None:
@@ -254,11 +274,15 @@ class SelfLocaliser:
         nis = float(innovation @ np.linalg.solve(s, innovation))
         if not nis <= self.config.gate_nis:
             self.rejections_ += 1
+            # Fading memory: a rejected fix is evidence that the odometry slipped (a collision, a
+            # push), so the state is trusted less and a run of consistent fixes gets through.
+            self.covariance_ = self.covariance_ * self.config.reject_inflation
             if self.rejections_ >= self.config.reinit_after:
-                # Re-initialise from a fit that owes nothing to the (wrong) prediction.
+                # Re-initialise from a fit that owes nothing to the (wrong) prediction, or else
+                # from this one (a single landmark, its flip resolved by starting from the
+                # prediction).
                 fresh = self.locator.locate(found, pan_deg, tilt_deg)
-                if fresh is not None:
-                    return self._initialise(fresh, nis)
+                return self._initialise(fix if fresh is None else fresh, nis, min_markers=1)
             return self.estimate(fix=fix, accepted=False, nis=nis)
         self.rejections_ = 0
         gain = self.covariance_ @ np.linalg.inv(s)
@@ -270,9 +294,14 @@ class SelfLocaliser:
         self.covariance_ = 0.5 * (covariance + covariance.T)
         return self.estimate(fix=fix, accepted=True, nis=nis)
 
-    def _initialise(self, fix: LandmarkFix, nis: float = float("nan")) -> LocalisationEstimate:
-        """(Re)starts the state at ``fix``, from at least ``min_markers_global`` landmarks."""
-        if len(fix.marker_ids) < self.locator.config.min_markers_global:
+    def _initialise(
+        self, fix: LandmarkFix, nis: float = float("nan"), min_markers: int | None = None
+    ) -> LocalisationEstimate:
+        """(Re)starts the state at ``fix`` if it uses at least ``min_markers`` landmarks (default
+        the locator's ``min_markers_global``)."""
+        if min_markers is None:
+            min_markers = self.locator.config.min_markers_global
+        if len(fix.marker_ids) < min_markers:
             return self.estimate(fix=fix, accepted=False, nis=nis)
         self.pose_ = fix.pose.copy()
         self.covariance_ = self.config.init_inflation * self.fix_covariance(fix)

@@ -26,7 +26,7 @@ from perception.landmarks import (
     LandmarkMarker,
     LocatorConfig,
     invert_planar,
-    landmark_pan,
+    landmark_view,
     read_landmark_map,
 )
 from perception.localisation import LocalisationEstimate, LocaliserConfig, SelfLocaliser
@@ -205,7 +205,7 @@ def run_filter(landmark_map, truth, localiser, rng, steps, kidnap_at=None, kidna
             pan, aimed = 85.0 * math.sin(0.35 * k), False
             tilt = TILT_DEG if (k // 18) % 2 == 0 else TILT_DEG - 12.0
         elif not aimed or k % 5 == 0:  # look where the estimate says most landmarks are
-            pan, _ = landmark_pan(landmark_map, INTRINSICS, localiser.pose_, TILT_DEG)
+            pan, _, _ = landmark_view(landmark_map, INTRINSICS, localiser.pose_, (TILT_DEG,))
             aimed = True
         found = observe(landmark_map, truth, pan, rng, tilt_deg=tilt)
         estimate = localiser.correct(found, pan, tilt)
@@ -333,7 +333,7 @@ def test_rendered_frames_locate_the_student(rendered_scene, landmark_map):
     floor = np.diag(np.square(LocaliserConfig().fix_floor_sigma))
     for x, y, yaw_deg in RENDERED_POSES:
         truth = np.array([x, y, math.radians(yaw_deg)])
-        pan, n = landmark_pan(landmark_map, intrinsics, truth, TILT_DEG)
+        pan, _, n = landmark_view(landmark_map, intrinsics, truth, (TILT_DEG,))
         found = locator.detect(render_head(rendered_scene, truth, pan, TILT_DEG))
         assert len(found) >= min(n, 2), (truth, pan, n, found)
         fix = locator.locate(found, pan, TILT_DEG)
@@ -349,7 +349,7 @@ def test_rendered_frames_initialise_the_filter_from_nothing(rendered_scene, land
     _, _, intrinsics = rendered_scene
     localiser = SelfLocaliser(LandmarkLocator(landmark_map, intrinsics))
     truth = np.array([-0.4, -1.0, math.radians(60.0)])
-    pan, _ = landmark_pan(landmark_map, intrinsics, truth, TILT_DEG)
+    pan, _, _ = landmark_view(landmark_map, intrinsics, truth, (TILT_DEG,))
     image = render_head(rendered_scene, truth, pan, TILT_DEG)
     estimate = localiser.correct(localiser.locator.detect(image), pan, TILT_DEG)
     assert estimate.reinitialised and estimate.status == "tracking"
@@ -359,31 +359,38 @@ def test_rendered_frames_initialise_the_filter_from_nothing(rendered_scene, land
 
 # -------------------------------------------------------------------------------- active gaze
 def test_gaze_shares_the_head_between_teacher_and_landmarks(landmark_map):
-    """Searching sweeps; performing alone looks at landmarks; watching follows the teacher until
-    the own position's sigma passes the glance threshold, glances at the landmarks, and comes back
-    when it has shrunk (or after the longest glance)."""
-    config = GazeConfig(glance_sigma_m=0.03, glance_max_steps=4)
+    """Searching sweeps at alternate tilts; performing alone looks at landmarks; watching follows
+    the teacher until the own position's sigma passes the glance threshold (or a fix is rejected),
+    glances at the landmarks, and comes back when a fix has shrunk it (or after the longest
+    glance); a glance with no fix turns into a sweep."""
+    config = GazeConfig(glance_sigma_m=0.03, glance_max_steps=4, sweep_after_steps=3)
     gaze = GazeController(landmark_map, INTRINSICS, config)
     pose = np.array([0.0, -1.0, math.pi / 2])  # facing the table, the top wall 3 m ahead
     teacher = (0.0, 0.5)
 
-    def estimate(sigma_m):
-        return LocalisationEstimate(pose, np.diag([sigma_m**2, sigma_m**2, 1e-4]), "tracking")
+    def estimate(sigma_m, accepted=True, rejections=0):
+        covariance = np.diag([sigma_m**2, sigma_m**2, 1e-4])
+        return LocalisationEstimate(
+            pose, covariance, "tracking", accepted=accepted, rejections=rejections
+        )
 
     searching = LocalisationEstimate(None, None, "searching")
-    pans = [gaze.step(searching, None, 0.1).pan_deg for _ in range(5)]
-    assert gaze.target_ == "search" and pans[-1] != pans[0]
+    commands = [gaze.step(searching, None, 0.1) for _ in range(40)]
+    assert gaze.target_ == "search"
+    assert {c.tilt_deg for c in commands} >= set(config.tilts_deg)
     for _ in range(30):
         command = gaze.step(estimate(0.01), None, 0.1, watching=False)
     assert gaze.target_ == "landmarks"
-    best, n = landmark_pan(landmark_map, INTRINSICS, pose, config.landmark_tilt_deg)
-    assert n >= 2 and command.pan_deg == pytest.approx(best)
-    assert command.tilt_deg == pytest.approx(config.landmark_tilt_deg)
+    pan, tilt, n = landmark_view(landmark_map, INTRINSICS, pose, config.tilts_deg)
+    assert n >= 2 and (command.pan_deg, command.tilt_deg) == pytest.approx((pan, tilt))
     gaze.step(estimate(0.01), teacher, 0.1)
     assert gaze.target_ == "teacher"
     gaze.step(estimate(0.05), teacher, 0.1)
     assert gaze.target_ == "landmarks" and gaze.glances_ == 1
-    gaze.step(estimate(0.01), teacher, 0.1)  # sigma below half the threshold: back
+    gaze.step(estimate(0.01), teacher, 0.1)  # a fix shrank sigma below half the threshold: back
     assert gaze.target_ == "teacher"
-    targets = [gaze.step(estimate(0.05), teacher, 0.1) and gaze.target_ for _ in range(7)]
-    assert targets[:5] == ["landmarks"] * 5 and "teacher" in targets[5:]
+    gaze.step(estimate(0.01, accepted=False, rejections=1), teacher, 0.1)
+    assert gaze.target_ == "landmarks" and gaze.glances_ == 2
+    targets = [gaze.step(estimate(0.05, None), teacher, 0.1) and gaze.target_ for _ in range(6)]
+    assert targets[:2] == ["landmarks"] * 2 and targets[2:4] == ["sweep"] * 2
+    assert "teacher" in targets[4:]
