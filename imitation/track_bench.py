@@ -8,6 +8,10 @@ estimate is compared with the simulator's pose. Two viewpoints:
 - head: the student's pan-tilt camera aimed at the teacher (1 to 3 m away), seeing its side, back or
   front markers; the camera's extrinsics come from the student's own pose and head angles through
   ``perception.pantilt.head_camera``, as they would on the real robot.
+
+Over time (``sequence``): tracking's speed and accuracy while the teacher loops, the student
+standing; and (``self_localisation``) the student's own pose while it drives about the arena,
+by odometry from its known start against the wall landmarks from an unknown one.
 """
 
 from __future__ import annotations
@@ -196,6 +200,9 @@ def run(
         "seed": seed,
         "viewpoints": results,
         "sequence": sequence_timing(width, height, seed, n_steps=max(100, n_samples)),
+        "self_localisation": self_localisation_run(
+            width, height, seed, n_steps=max(300, 3 * n_samples)
+        ),
     }
     if out_path is not None:
         out_path = pathlib.Path(out_path)
@@ -299,4 +306,75 @@ def sequence_timing(
             row["steps_to_first_own_pose"] = first_pose
             row["glances"] = glances
         out[view if method == "odometry" else "head_landmarks"] = row
+    return out
+
+
+def _wander(observation, rng, state: dict) -> tuple[float, float]:
+    """Returns the bench driver's wheel command ``(m/s, rad/s)`` from the true poses: forward with
+    a little steering; near a wall, the table or the teacher it turns in place for 1-3 s, except
+    that one time in six at a wall it drives on into it for 2 s (the wheels slip)."""
+    x, y, yaw = observation["student_pose"]
+    teacher = np.asarray(observation["teacher_pose"][:2])
+    if state["push"] > 0:
+        state["push"] -= 1
+        return 0.35, 0.0
+    if state["turn"] > 0:
+        state["turn"] -= 1
+        return 0.0, math.radians(60.0)
+    ahead = np.array([x + 0.6 * math.cos(yaw), y + 0.6 * math.sin(yaw)])
+    if np.hypot(*(ahead - teacher)) < 0.9 or np.hypot(x - teacher[0], y - teacher[1]) < 0.8:
+        state["turn"] = int(rng.integers(10, 30))
+        return 0.0, 0.0
+    if np.max(np.abs(ahead)) > 1.75 or (abs(ahead[0]) < 0.7 and ahead[1] > 1.35):
+        if rng.random() < 1.0 / 6.0:
+            state["push"] = 20
+        else:
+            state["turn"] = int(rng.integers(10, 30))
+        return 0.0, 0.0
+    return 0.35, float(rng.normal(0.0, 0.2))
+
+
+def self_localisation_run(
+    width: int = 320, height: int = 240, seed: int = 0, n_steps: int = 600
+) -> dict:
+    """The student's own pose while it drives (``_wander``, seeded, the same path for both) and
+    watches the looping teacher through its head camera, per method: 'odometry' (from the known
+    start) and 'landmarks' (from an unknown start). Returns per method the own position and
+    heading errors (median, p95; from the first step with a pose), the steps to that pose, the
+    teacher's seen fraction, the glances at landmarks and the vision time per step (ms)."""
+    out = {"steps": n_steps}
+    for method in ("odometry", "landmarks"):
+        env = load(seed=seed, cameras=("head",), width=width, height=height)
+        timestep = env.reset()
+        spec, dt = env.action_spec(), env.task.control_timestep
+        vision = StudentVision(
+            "head", Calibration(env.physics, width, height), self_localisation=method
+        )
+        vision.reset(
+            timestep.observation["student_pose"], timestep.observation["student_wheel_angles"]
+        )
+        rng, state = np.random.default_rng(seed), {"push": 0, "turn": 0}
+        own, seen, first, vision_s = [], 0, None, 0.0
+        for i in range(n_steps):
+            t0 = time.perf_counter()
+            poses = vision.update(timestep.observation, i * dt, dt)
+            vision_s += time.perf_counter() - t0
+            seen += poses["teacher"] is not None
+            if poses["student"] is not None:
+                first = i if first is None else first
+                e = poses["student"] - timestep.observation["student_pose"]
+                own.append((100 * math.hypot(e[0], e[1]), abs(math.degrees(wrap_radians(e[2])))))
+            command = _wander(timestep.observation, rng, state)
+            timestep = env.step(make_action(spec, command, vision.head_command))
+        env.close()
+        own = np.asarray(own).reshape(-1, 2)
+        gaze = getattr(vision, "gaze", None)
+        out[method] = {
+            "own_position_error_cm": _stats(own[:, 0]),
+            "own_heading_error_deg": _stats(own[:, 1]),
+            "steps_to_first_own_pose": first,
+            "teacher_seen_fraction": seen / n_steps,
+            "glances": None if gaze is None else gaze.glances_,
+            "vision_ms_per_step": 1000 * vision_s / n_steps,
+        }
     return out

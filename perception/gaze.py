@@ -12,7 +12,7 @@ The policy (:class:`GazeController`), once per control step:
    ``glance_sigma_m`` and the last landmark fix was not rejected; otherwise glance at the
    landmarks until a fix is accepted with the deviation below ``glance_sigma_m / 2``, or
    ``glance_max_steps`` have passed, then back to the teacher. A lost teacher is searched for with
-   the controller's pan sweep (which passes the landmarks too).
+   the sweep of 1 (which passes the landmarks too).
 4. Looking at landmarks with no fix accepted for ``sweep_after_steps`` (the estimate may be so
    wrong that the chosen pan shows none): sweep the pan until a fix is accepted.
 
@@ -133,6 +133,8 @@ class GazeController:
             else:
                 self.target_ = "teacher"
             if self.target_ == "teacher":
+                if teacher_xy is None:  # lost: the sweep finds the teacher and the landmarks
+                    return self._sweep(dt_s)
                 return self.controller.step(estimate.pose, teacher_xy, dt_s)
         if self._no_fix_steps >= c.sweep_after_steps:
             self.target_, self._view = "sweep", None
