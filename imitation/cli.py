@@ -202,7 +202,12 @@ def _cmd_calibrate(args) -> int:
 def _cmd_markers(args) -> int:
     from imitation import printables
 
-    summary = printables.write_plates_pdf(args.out, paper=args.paper)
+    landmarks = None
+    if args.landmarks is not None:
+        from perception.landmarks import read_landmark_map
+
+        landmarks = read_landmark_map(args.landmarks)
+    summary = printables.write_plates_pdf(args.out, paper=args.paper, landmarks=landmarks)
     sheets = sorted({page["sheet"] for page in summary["pages"]})
     print(
         f"written: {args.out} ({len(summary['pages'])} pages on {', '.join(sheets)}; print at 100% "
@@ -518,6 +523,13 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("A4", "A3", "letter"),
         default="A4",
         help="the paper series (plates go on the smallest sheet of it that holds them)",
+    )
+    markers.add_argument(
+        "--landmarks",
+        type=pathlib.Path,
+        default=None,
+        help="also print the wall landmarks of this marker map (the simulated arena's: "
+        "models/arena/landmarks.toml)",
     )
     markers.set_defaults(func=_cmd_markers)
 
