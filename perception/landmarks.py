@@ -35,6 +35,7 @@ from perception.layout import DICTIONARY_NAME, QUIET_ZONE_M, default_layout
 from perception.markers import DetectorConfig, MarkerDetector
 from perception.pantilt import HeadMount, PanTiltLimits, head_camera, head_camera_rotation
 from perception.pose import check_planar_pose, fit_planar_pose, quad_area_px, wrap_radians
+from perception.wallframe import check_finite
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -338,14 +339,18 @@ class LandmarkLocator:
         pass, ``self.detector.detect_all_corners``), ids found more than once dropped, sorted by
         id."""
         ids = [int(i) for i, _ in found]
-        return sorted(
-            (
-                (int(i), np.asarray(c, dtype=float))
-                for i, c in found
-                if i in self.map and ids.count(i) == 1
-            ),
-            key=lambda m: m[0],
-        )
+        out = []
+        for i, corners in found:
+            if int(i) not in self.map or ids.count(int(i)) != 1:
+                continue
+            corners = np.asarray(corners, dtype=float)
+            if corners.shape != (4, 2) or not np.all(np.isfinite(corners)):
+                raise ValueError(
+                    f"marker {i}: corners must be 4 finite pixels, shape (4, 2), "
+                    f"got shape {corners.shape}"
+                )
+            out.append((int(i), corners))
+        return sorted(out, key=lambda m: m[0])
 
     def robot_camera(self, pan_deg: float, tilt_deg: float) -> PinholeCamera:
         """Returns the head camera posed in the robot frame (the robot at the world origin)."""
@@ -365,6 +370,7 @@ class LandmarkLocator:
 
         None when too few markers are seen or no fit reaches ``max_rms_error_px``.
         """
+        check_finite(pan_deg=pan_deg, tilt_deg=tilt_deg)
         found = self.select(found)
         needed = self.config.min_markers if prior is not None else self.config.min_markers_global
         if len(found) < needed:

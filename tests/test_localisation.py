@@ -293,7 +293,12 @@ def test_bad_input_is_refused_by_name(landmark_map):
         LocaliserConfig(reinit_after=0)
     with pytest.raises(ValueError, match="corner_sigma_px"):
         LocatorConfig(corner_sigma_px=-1.0)
-    localiser = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS))
+    locator = LandmarkLocator(landmark_map, INTRINSICS)
+    with pytest.raises(ValueError, match="marker 20: corners must be 4 finite pixels"):
+        locator.locate([(20, np.zeros((3, 2))), (21, np.zeros((4, 2)))], 0.0, 0.0)
+    with pytest.raises(ValueError, match="tilt_deg"):
+        locator.locate([], 0.0, float("nan"), prior=(0.0, 0.0, 0.0))
+    localiser = SelfLocaliser(locator)
     with pytest.raises(ValueError, match="wheel_angles"):
         localiser.predict_wheels((0.0, float("nan")))
     with pytest.raises(ValueError, match="start_pose"):
