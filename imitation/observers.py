@@ -22,9 +22,10 @@ import math
 import numpy as np
 
 from peoplebot_sim import assets, cameras
+from perception.arenafile import read_arena
 from perception.gaze import GazeController
 from perception.landmarks import LandmarkLocator, read_landmark_map
-from perception.localisation import LocalisationEstimate, SelfLocaliser
+from perception.localisation import LocalisationEstimate, LocaliserConfig, SelfLocaliser
 from perception.odometry import WheelOdometry
 from perception.pantilt import PanTiltController, head_camera
 from perception.pipeline import Tracker
@@ -32,6 +33,10 @@ from perception.pipeline import Tracker
 VISION_MODES = ("truth", "overhead", "head")
 #: How the head mode knows the student's own pose.
 SELF_LOCALISATIONS = ("landmarks", "odometry")
+#: The closest the PeopleBot's centre of rotation comes to a wall, metres: half its 0.425 m width
+#: (ARIA's ``RobotWidth 425``, ``peoplebot_sim.entities``), rounded down; it bounds the landmark
+#: filter's estimate.
+ROBOT_HALF_WIDTH_M = 0.2
 
 
 def check_vision_mode(mode: str) -> str:
@@ -51,12 +56,13 @@ def check_self_localisation(method: str) -> str:
 class Calibration:
     """The student's camera calibrations, measured once from the simulator (as one would calibrate a
     real camera): the overhead camera with its fixed pose, the head camera's intrinsics, and the
-    arena's wall landmarks (its map file, as a real robot would read its room's)."""
+    arena and its wall landmarks (their files, as a real robot would read its room's)."""
 
     def __init__(self, physics, width: int, height: int):
         self.overhead = cameras.camera_model(physics, "overhead", width, height)
         self.head_intrinsics = cameras.camera_model(physics, "student/head_camera", width, height)
         self.landmarks = read_landmark_map(assets.LANDMARKS_TOML)
+        self.arena = read_arena(assets.ARENA_TOML).arena
 
 
 class StudentVision:
@@ -113,7 +119,10 @@ class StudentVision:
         if self.uses_landmarks and wheel_angles is not None:
             calibration = self.calibration
             self.localiser = SelfLocaliser(
-                LandmarkLocator(calibration.landmarks, calibration.head_intrinsics)
+                LandmarkLocator(calibration.landmarks, calibration.head_intrinsics),
+                config=LocaliserConfig(
+                    free_half_side_m=calibration.arena.half_side_m - ROBOT_HALF_WIDTH_M
+                ),
             )
             self.localiser.reset(None, wheel_angles=wheel_angles)
             self.gaze = GazeController(

@@ -154,9 +154,12 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
         result = run_planned_trial(
             config, env, item, item.policy, models.get(item.policy), calibration
         )
+        # The estimate of step k is made from the observation before the step, i.e. the pose
+        # after step k - 1 (the start for k = 0); trace[k] is the pose after step k.
         est = result.estimate
+        truth_then = np.vstack([np.asarray(item.start, dtype=float)[None, :], result.trace[:-1]])
         valid = np.all(np.isfinite(est), axis=1)
-        own_error = np.hypot(*(est[valid, :2] - result.trace[valid, :2]).T)
+        own_error = np.hypot(*(est[valid, :2] - truth_then[valid, :2]).T)
         out.append(
             TrialRecord(
                 row=item.row,

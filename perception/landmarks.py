@@ -358,7 +358,9 @@ class LandmarkLocator:
             head_camera_rotation(0.0, pan_deg, tilt_deg), np.asarray(self.mount.position_m, float)
         )
 
-    def locate(self, found, pan_deg: float, tilt_deg: float, prior=None) -> LandmarkFix | None:
+    def locate(
+        self, found, pan_deg: float, tilt_deg: float, prior=None, min_markers: int | None = None
+    ) -> LandmarkFix | None:
         """Returns the base's pose fitted to all the landmarks' corners, or None.
 
         Args:
@@ -367,12 +369,18 @@ class LandmarkLocator:
           pan_deg, tilt_deg: the head's measured angles when the image was taken.
           prior: a predicted ``(x_m, y_m, yaw_rad)`` to start from; None starts from each of the two
             largest markers' IPPE poses (both flips) and needs ``min_markers_global`` markers.
+          min_markers: fewest landmarks to fit; default ``min_markers`` with a prior, else
+            ``min_markers_global``.
 
         None when too few markers are seen or no fit reaches ``max_rms_error_px``.
         """
         check_finite(pan_deg=pan_deg, tilt_deg=tilt_deg)
         found = self.select(found)
-        needed = self.config.min_markers if prior is not None else self.config.min_markers_global
+        needed = min_markers
+        if needed is None:
+            needed = (
+                self.config.min_markers if prior is not None else self.config.min_markers_global
+            )
         if len(found) < needed:
             return None
         camera = self.robot_camera(pan_deg, tilt_deg)

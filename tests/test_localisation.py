@@ -399,3 +399,23 @@ def test_gaze_shares_the_head_between_teacher_and_landmarks(landmark_map):
     targets = [gaze.step(estimate(0.05, None), teacher, 0.1) and gaze.target_ for _ in range(6)]
     assert targets[:2] == ["landmarks"] * 2 and targets[2:4] == ["sweep"] * 2
     assert "teacher" in targets[4:]
+
+
+def test_estimate_is_held_inside_the_arena_and_one_landmark_initialises_in_the_end(landmark_map):
+    """Odometry driving through a wall (the wheels slipping against it) leaves the estimate at the
+    arena's edge; searching longer than ``single_init_after_steps``, one landmark initialises."""
+    config = LocaliserConfig(free_half_side_m=1.8, single_init_after_steps=3)
+    localiser = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS), config=config)
+    localiser.reset((1.6, 0.0, 0.0))
+    for _ in range(20):
+        localiser.predict(0.035, 0.0)
+    assert localiser.pose_[0] == pytest.approx(1.8) and localiser.pose_[1] == pytest.approx(0.0)
+    localiser.reset()
+    rng = np.random.default_rng(0)
+    truth = np.array([0.0, -0.5, math.pi / 2])
+    one = observe(landmark_map, truth, 20.0, rng, tilt_deg=-12.0)[:1]
+    assert len(one) == 1
+    states = [localiser.correct(one, 20.0, -12.0).status for _ in range(5)]
+    assert states[:3] == ["searching"] * 3 and states[-1] == "tracking"
+    position, heading = pose_error(localiser.pose_, truth)
+    assert position < 0.1 and heading < 2.0
