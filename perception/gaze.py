@@ -52,7 +52,7 @@ class GazeConfig:
     glance_sigma_m: float = 0.03
     glance_max_steps: int = 10
     relook_steps: int = 5
-    tilts_deg: tuple[float, ...] = (-12.0, -24.0)
+    tilts_deg: tuple[float, ...] = (-10.0, -20.0, -30.0)
     sweep_pan_deg: float = 85.0
     sweep_after_steps: int = 6
 

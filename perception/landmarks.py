@@ -458,7 +458,7 @@ def landmark_view(
     landmark_map: LandmarkMap,
     intrinsics: PinholeCamera,
     pose,
-    tilts_deg=(-12.0, -24.0),
+    tilts_deg=(-10.0, -20.0, -30.0),
     *,
     limits: PanTiltLimits = PanTiltLimits(),
     mount: HeadMount = HeadMount(),

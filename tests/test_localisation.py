@@ -108,10 +108,10 @@ def test_map_ids_avoid_the_robots_and_every_wall_carries_markers(landmark_map):
     assert set(landmark_map.ids).isdisjoint({0, 1, 2, 3, 4, 10, 11, 12, 13, 14})
     walls = {(round(m.rotation[0, 2]), round(m.rotation[1, 2])) for m in landmark_map.markers}
     assert walls == {(0, -1), (-1, 0), (0, 1), (1, 0)}
-    for marker in landmark_map.markers:  # on a wall face, inside the 0.5 m high wall
+    for marker in landmark_map.markers:  # on a wall face, clipped to the 0.5 m wall's top edge
         assert abs(np.max(np.abs(marker.position_m[:2])) - 1.996) < 1e-9
-        corners = marker.corners_world()
-        assert corners[:, 2].min() > 0.0 and corners[:, 2].max() < 0.5
+        plate_bottom = marker.position_m[2] - 0.5 * marker.size_m - landmark_map.quiet_zone_m
+        assert 0.4 < plate_bottom < 0.5
 
 
 def test_map_refuses_robot_ids_and_duplicates():
