@@ -185,7 +185,7 @@ def read_landmark_map(path) -> LandmarkMap:
         [[marker]]
         id = 20
         size_m = 0.30
-        position_m = [-1.2, 1.999, 0.25]   # the centre of the printed face
+        position_m = [-1.6, 1.996, 0.65]   # the centre of the printed face
         normal = [0.0, -1.0, 0.0]          # out of the face, into the room
         up = [0.0, 0.0, 1.0]               # optional: the printed top's direction
     """
