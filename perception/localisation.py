@@ -64,7 +64,7 @@ class LocaliserConfig:
         from a single landmark, which cannot re-initialise the filter.
       single_init_after_steps: searching this many steps without a fix from two landmarks, one
         landmark may initialise the filter (its flip is resolved by the level robot: on synthetic
-        corners the error is 3.6 cm median, 17 cm p95, docs/perception.md).
+        corners the error is 2.8 cm median, 20 cm p95, docs/perception.md).
       free_half_side_m: where the robot frame's origin can be: within this of the arena's centre
         along x and y (a square arena centred on the world origin, less the robot's half-width);
         an estimate outside is moved back to the edge (wheels slipping against a wall drive the

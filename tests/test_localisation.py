@@ -217,7 +217,7 @@ def test_filter_is_consistent_nees_and_nis_within_chi_square_bounds(landmark_map
     """20 seeded runs of 60 steps from a known start, the filter's noise model the truth's (corner
     sigma 0.5 px, no fix floor): the NEES averaged over the runs lies inside the two-sided 95%
     chi-square band on most steps (>= 80%; neighbouring steps are correlated, so the fraction
-    scatters between seeds: 0.87-0.95 on seeds 7-9), its overall mean is 3 +- 0.5, and its 95th
+    scatters between seeds; 0.95 on seeds 7-9), its overall mean is 3 +- 0.5, and its 95th
     percentile is near chi-square's (7.8); the NIS of accepted fixes has a mean inside its band."""
     rng = np.random.default_rng(7)
     runs, steps = 20, 60
@@ -253,8 +253,7 @@ def test_filter_is_consistent_nees_and_nis_within_chi_square_bounds(landmark_map
 def test_global_initialisation_from_random_starts(landmark_map):
     """Put down anywhere with no start pose, driving: after 5 s (50 steps) of sweeping the head and
     then looking at landmarks the filter has found itself: every start within 5 cm and 3 deg, the
-    median within 1 cm and 0.5 deg (on seeds 100-105, 72 starts: 0.44 cm and 0.10 deg median,
-    1.7 cm and 0.45 deg p95)."""
+    median within 1 cm and 0.5 deg (measured: docs/perception.md, "Self-localisation")."""
     rng = np.random.default_rng(3)
     errors = []
     for _ in range(12):
