@@ -92,6 +92,7 @@ REPRODUCE_OPTIONS = {
     "train_steps": "learning.train_steps",
     "test_steps": "learning.test_steps",
     "vision_test_steps": "vision.test_steps",
+    "self_localisation": "vision.self_localisation",
     "trials": "performance.trials",
     "trial_seconds": "performance.trial_seconds",
     "workers": "workers",
@@ -128,8 +129,11 @@ def _cmd_reproduce(args) -> int:
     from imitation.reproduce import run
 
     config = reproduce_config(args)
+    vision = config.vision.mode
+    if vision == "head" and config.vision.self_localisation == "odometry":
+        vision = "head_odometry"
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
-        f"{config.vision.mode}-{config.learning.motor_source}-seed{config.seed}"
+        f"{vision}-{config.learning.motor_source}-seed{config.seed}"
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
@@ -238,7 +242,12 @@ def _cmd_calibrate(args) -> int:
 def _cmd_markers(args) -> int:
     from imitation import printables
 
-    summary = printables.write_plates_pdf(args.out, paper=args.paper)
+    landmarks = None
+    if args.landmarks is not None:
+        from perception.landmarks import read_landmark_map
+
+        landmarks = read_landmark_map(args.landmarks)
+    summary = printables.write_plates_pdf(args.out, paper=args.paper, landmarks=landmarks)
     sheets = sorted({page["sheet"] for page in summary["pages"]})
     print(
         f"written: {args.out} ({len(summary['pages'])} pages on {', '.join(sheets)}; print at 100% "
@@ -408,6 +417,13 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_int,
         default=None,
         help="steps watched through the camera for recognition (camera modes)",
+    )
+    rep.add_argument(
+        "--self-localisation",
+        choices=("landmarks", "odometry"),
+        default=None,
+        help="the head mode's own pose: wall landmarks and odometry from an unknown start "
+        "(default) or odometry alone from the known start",
     )
     rep.add_argument(
         "--trials", type=_positive_int, default=None, help="random starts per word (50)"
@@ -624,6 +640,13 @@ def build_parser() -> argparse.ArgumentParser:
         choices=("A4", "A3", "letter"),
         default="A4",
         help="the paper series (plates go on the smallest sheet of it that holds them)",
+    )
+    markers.add_argument(
+        "--landmarks",
+        type=pathlib.Path,
+        default=None,
+        help="also print the wall landmarks of this marker map (the simulated arena's: "
+        "models/arena/landmarks.toml)",
     )
     markers.set_defaults(func=_cmd_markers)
 

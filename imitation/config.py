@@ -21,7 +21,7 @@ from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from imitation import storage
 from imitation.learning import MOTOR_SOURCES
-from imitation.observers import VISION_MODES
+from imitation.observers import SELF_LOCALISATIONS, VISION_MODES
 from imitation.performance import DRIVE_MODES, SuccessConfig
 from imitation.perturbations import PerturbationConfig
 from peoplebot_sim.task import TaskConfig
@@ -177,15 +177,20 @@ class VisionConfig:
         frames tracked by ``perception``).
       test_steps: steps watched through the camera for recognition (camera modes only).
       width, height: the student's camera frames, pixels.
+      self_localisation: how the head mode knows the student's own pose: 'landmarks' (wheel
+        odometry fused with the wall landmarks, from an unknown start) or 'odometry' (wheel
+        odometry alone from the known start, for comparison).
     """
 
     mode: str = "truth"
     test_steps: int = 20_000
     width: int = 320
     height: int = 240
+    self_localisation: str = "landmarks"
 
     def __post_init__(self):
         _check_choice("vision.mode", self.mode, VISION_MODES)
+        _check_choice("vision.self_localisation", self.self_localisation, SELF_LOCALISATIONS)
         _check_count("vision.test_steps", self.test_steps)
         _check_pixels("vision", self.width, self.height)
 

@@ -3,8 +3,11 @@
 - ``truth``: the simulator's poses (the paper's setting).
 - ``overhead``: the overhead camera's frames, tracked by ``perception`` (both robots).
 - ``head``: the student's own pan-tilt camera, tracked by ``perception``; the camera's pose comes
-  from the student's own pose (wheel odometry from its known start) and its head angles, and a
-  pan-tilt controller keeps the teacher in view. The student's own pose is its odometry.
+  from the student's own pose and its head angles. The own pose (``self_localisation``):
+  'landmarks' (the default): wheel odometry fused with the wall landmarks the head camera sees
+  (``perception.localisation``), from an unknown start, the head shared between the teacher and
+  the landmarks (``perception.gaze``); 'odometry': wheel odometry alone from the known start, a
+  pan-tilt controller keeping the teacher in view (the comparison).
 
 ``StudentVision`` reads only the environment's observations (camera frames, wheel encoders, head
 angles; the simulator's poses in ``truth`` mode) and camera calibrations, as a real robot would.
@@ -18,12 +21,22 @@ import math
 
 import numpy as np
 
-from peoplebot_sim import cameras
+from peoplebot_sim import assets, cameras
+from perception.arenafile import read_arena
+from perception.gaze import GazeController
+from perception.landmarks import LandmarkLocator, read_landmark_map
+from perception.localisation import LocalisationEstimate, LocaliserConfig, SelfLocaliser
 from perception.odometry import WheelOdometry
 from perception.pantilt import HeadMount, PanTiltController, head_camera
 from perception.pipeline import Tracker
 
 VISION_MODES = ("truth", "overhead", "head")
+#: How the head mode knows the student's own pose.
+SELF_LOCALISATIONS = ("landmarks", "odometry")
+#: The closest the PeopleBot's centre of rotation comes to a wall, metres: half its 0.425 m width
+#: (ARIA's ``RobotWidth 425``, ``peoplebot_sim.entities``), rounded down; it bounds the landmark
+#: filter's estimate.
+ROBOT_HALF_WIDTH_M = 0.2
 
 
 def check_vision_mode(mode: str) -> str:
@@ -32,16 +45,27 @@ def check_vision_mode(mode: str) -> str:
     return mode
 
 
+def check_self_localisation(method: str) -> str:
+    if method not in SELF_LOCALISATIONS:
+        raise ValueError(
+            f"unknown self-localisation {method!r}; allowed: {', '.join(SELF_LOCALISATIONS)}"
+        )
+    return method
+
+
 class Calibration:
     """The student's camera calibrations, measured once from the simulator (as one would calibrate a
     real camera): the overhead camera with its fixed pose, the head camera's intrinsics, its
-    mount on the robot and the zero offsets of its pan and tilt readings (degrees)."""
+    mount on the robot and the zero offsets of its pan and tilt readings (degrees), and the arena
+    and its wall landmarks (their files, as a real robot would read its room's)."""
 
     def __init__(self, physics, width: int, height: int):
         self.overhead = cameras.camera_model(physics, "overhead", width, height)
         self.head_intrinsics = cameras.camera_model(physics, "student/head_camera", width, height)
         self.head_mount = HeadMount()
         self.head_angle_offsets_deg = (0.0, 0.0)
+        self.landmarks = read_landmark_map(assets.LANDMARKS_TOML)
+        self.arena = read_arena(assets.ARENA_TOML).arena
 
 
 class StudentVision:
@@ -51,6 +75,7 @@ class StudentVision:
       mode: one of ``VISION_MODES``.
       calibration: camera calibrations (needed by the camera modes).
       watch_teacher: also estimate the teacher (False when the student performs alone).
+      self_localisation: the head mode's own pose, one of ``SELF_LOCALISATIONS``.
     """
 
     def __init__(
@@ -58,8 +83,10 @@ class StudentVision:
         mode: str = "truth",
         calibration: Calibration | None = None,
         watch_teacher: bool = True,
+        self_localisation: str = "landmarks",
     ):
         self.mode = check_vision_mode(mode)
+        self.self_localisation = check_self_localisation(self_localisation)
         if mode != "truth" and calibration is None:
             raise ValueError(f"vision mode {mode!r} needs a camera calibration")
         self.calibration = calibration
@@ -71,18 +98,40 @@ class StudentVision:
             robots.append("student")
         self._robots = tuple(robots)
         self.odometry = None
+        self.localiser = None
+        self.localisation: LocalisationEstimate | None = None
         self.reset()
+
+    @property
+    def uses_landmarks(self) -> bool:
+        """Returns True when the own pose comes from the landmark filter (head mode)."""
+        return self.mode == "head" and self.self_localisation == "landmarks"
 
     def reset(self, start_pose=None, wheel_angles=None) -> None:
         """Starts afresh. The head mode's odometry starts from the student's known start pose and
-        wheel angles (it cannot update before they are given)."""
+        wheel angles (it cannot update before they are given); the landmark filter ignores the
+        start pose and finds itself (it needs the wheel angles)."""
         self.tracker = (
             Tracker(robots=self._robots) if self._robots and self.mode != "truth" else None
         )
         self.head_command = (0.0, 0.0)
         self.pantilt = PanTiltController()
         self.odometry = None
-        if self.mode == "head" and start_pose is not None and wheel_angles is not None:
+        self.localiser = None
+        self.localisation = None
+        if self.uses_landmarks and wheel_angles is not None:
+            calibration = self.calibration
+            self.localiser = SelfLocaliser(
+                LandmarkLocator(calibration.landmarks, calibration.head_intrinsics),
+                config=LocaliserConfig(
+                    free_half_side_m=calibration.arena.half_side_m - ROBOT_HALF_WIDTH_M
+                ),
+            )
+            self.localiser.reset(None, wheel_angles=wheel_angles)
+            self.gaze = GazeController(
+                calibration.landmarks, calibration.head_intrinsics, controller=self.pantilt
+            )
+        elif self.mode == "head" and start_pose is not None and wheel_angles is not None:
             self.odometry = WheelOdometry(start_pose, *wheel_angles)
 
     def update(self, observation: dict, time_s: float, dt: float) -> dict:
@@ -102,6 +151,8 @@ class StudentVision:
             for robot, track in tracked.items():
                 out[robot] = None if track.track.pose is None else track.track.pose.copy()
             return out
+        if self.uses_landmarks:
+            return self._update_landmarks(observation, time_s, dt)
         if self.odometry is None:
             raise ValueError("the head mode needs reset(start_pose, wheel_angles) before update()")
         own = self.odometry.update(*observation["student_wheel_angles"])
@@ -120,6 +171,34 @@ class StudentVision:
             target = None if out["teacher"] is None else out["teacher"][:2]
             command = self.pantilt.step(own, target, dt)
             self.head_command = (math.radians(command.pan_deg), math.radians(command.tilt_deg))
+        return out
+
+    def _update_landmarks(self, observation: dict, time_s: float, dt: float) -> dict:
+        """The head mode with the landmark filter: odometry, then this frame's landmarks, then the
+        teacher from the camera posed at the filtered pose, then the head's next command."""
+        if self.localiser is None:
+            raise ValueError("the head mode needs reset(start_pose, wheel_angles) before update()")
+        if "head_camera" not in observation:
+            raise ValueError(
+                "self_localisation='landmarks' needs the head camera's frames: load the "
+                "environment with cameras=('head',)"
+            )
+        pan, tilt = (math.degrees(a) for a in observation["student_head_angles"])
+        image = observation["head_camera"]
+        self.localiser.predict_wheels(observation["student_wheel_angles"])
+        # One detection pass for the landmarks and the teacher.
+        found = self.localiser.locator.detector.detect_all_corners(image)
+        self.localisation = self.localiser.correct(found, pan, tilt)
+        own = self.localisation.pose
+        out = {"student": None if own is None else own.copy(), "teacher": None}
+        if self.watch_teacher and own is not None:
+            camera = head_camera(self.calibration.head_intrinsics, own, pan, tilt)
+            track = self.tracker.update(image, camera, time_s, found=found)["teacher"]
+            if track.track.pose is not None:
+                out["teacher"] = track.track.pose.copy()
+        target = None if out["teacher"] is None else out["teacher"][:2]
+        command = self.gaze.step(self.localisation, target, dt, watching=self.watch_teacher)
+        self.head_command = (math.radians(command.pan_deg), math.radians(command.tilt_deg))
         return out
 
 

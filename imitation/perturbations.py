@@ -434,14 +434,18 @@ def student_vision(
     dt: float,
     seed,
     watch_teacher: bool = True,
+    self_localisation: str = "landmarks",
 ):
-    """Returns the student's vision in ``mode`` with the calibration it believes and the vision
-    perturbations; the plain ``StudentVision`` on the given calibration when they are off."""
+    """Returns the student's vision in ``mode`` (the head mode's own pose by
+    ``self_localisation``) with the calibration it believes and the vision perturbations; the
+    plain ``StudentVision`` on the given calibration when they are off."""
     if calibration is not None:
         calibration = believed_calibration(
             calibration, perturbations.calibration, rng_for(seed_of(seed), "calibration")
         )
-    vision = StudentVision(mode, calibration, watch_teacher=watch_teacher)
+    vision = StudentVision(
+        mode, calibration, watch_teacher=watch_teacher, self_localisation=self_localisation
+    )
     if not perturbations.vision_active:
         return vision
     return PerturbedVision(vision, perturbations, dt, seed)

@@ -6,7 +6,8 @@ drawing from the PeopleBot model (``models/peoplebot/peoplebot.xml``, read as XM
 not imported).
 
 Pages: 1, where each plate goes (top and side view at 1:10, a table, instructions); 2, the ChArUco
-board with a 10 cm scale bar, in landscape; then one plate a page, in ``default_layout()`` order.
+board with a 10 cm scale bar, in landscape; then one plate a page, in ``default_layout()`` order;
+then, given an arena's landmark map, one wall landmark a page, in id order.
 
 Paper: ``paper`` names a series and its smallest sheet, "A4" (A4, A3, A2, A1, A0), "A3" (A3 up) or
 "letter" (letter, tabloid, ANSI C, ANSI D). The placement sheet is printed on ``paper``; the board
@@ -38,6 +39,7 @@ from matplotlib.patches import Circle, Polygon, Rectangle
 
 from perception import layout
 from perception.board import DEFAULT_BOARD, BoardSpec, board_image
+from perception.landmarks import LandmarkMap, LandmarkMarker
 from perception.layout import MarkerPlacement
 
 MM_PER_INCH = 25.4
@@ -92,10 +94,20 @@ class _Sheet:
     height_mm: float
 
 
-def _direction_words(vector: np.ndarray) -> str:
+_WORLD_DIRECTION_WORDS = {
+    (1, 0, 0): "east (+x)",
+    (-1, 0, 0): "west (-x)",
+    (0, 1, 0): "north (+y)",
+    (0, -1, 0): "south (-y)",
+    (0, 0, 1): "up (+z)",
+    (0, 0, -1): "down (-z)",
+}
+
+
+def _direction_words(vector: np.ndarray, words: dict = _DIRECTION_WORDS) -> str:
     key = tuple(int(v) for v in np.round(vector))
-    if np.allclose(vector, key, atol=1e-6) and key in _DIRECTION_WORDS:
-        return _DIRECTION_WORDS[key]
+    if np.allclose(vector, key, atol=1e-6) and key in words:
+        return words[key]
     return "({:+.2f}, {:+.2f}, {:+.2f})".format(*vector)
 
 
@@ -119,13 +131,17 @@ def _marker_cells(marker_id: int) -> np.ndarray:
     return cv2.aruco.generateImageMarker(dictionary, int(marker_id), cells, borderBits=1)
 
 
-def plate_side_mm(placement: MarkerPlacement) -> float:
-    """Returns the side of the printed plate (black square plus quiet zone both sides), mm."""
-    return 1000.0 * (placement.size_m + 2.0 * layout.QUIET_ZONE_M)
+def plate_side_mm(placement, quiet_zone_m: float = layout.QUIET_ZONE_M) -> float:
+    """Returns the side of the printed plate (black square plus quiet zone both sides), mm, of a
+    robot's ``MarkerPlacement`` or a wall's ``LandmarkMarker``."""
+    return 1000.0 * (placement.size_m + 2.0 * quiet_zone_m)
 
 
-def plate_image(placement: MarkerPlacement, dots_per_mm: float) -> np.ndarray:
-    """Returns the plate as printed: the marker with its white quiet zone, shape (n, n), uint8.
+def plate_image(
+    placement, dots_per_mm: float, quiet_zone_m: float = layout.QUIET_ZONE_M
+) -> np.ndarray:
+    """Returns the plate as printed: the marker with its white quiet zone, shape (n, n), uint8
+    (a robot's ``MarkerPlacement`` or a wall's ``LandmarkMarker``).
 
     ``n = round(plate_side_mm(placement) * dots_per_mm)``; row 0 is the plate's top edge (the
     marker's +y), 0 is black and 255 white. Each pixel takes the colour of the marker cell under its
@@ -136,13 +152,13 @@ def plate_image(placement: MarkerPlacement, dots_per_mm: float) -> np.ndarray:
     if not dots_per_mm > 0:
         raise ValueError(f"dots_per_mm must be positive, got {dots_per_mm}")
     cells = _marker_cells(placement.marker_id)
-    side_mm = plate_side_mm(placement)
+    side_mm = plate_side_mm(placement, quiet_zone_m)
     n = int(round(side_mm * dots_per_mm))
     if n < 2 * cells.shape[0]:
         raise ValueError(f"dots_per_mm={dots_per_mm} gives {n} px for the plate; too few")
     centres_mm = (np.arange(n) + 0.5) * (side_mm / n)
     cell_mm = 1000.0 * placement.size_m / cells.shape[0]
-    index = np.floor((centres_mm - 1000.0 * layout.QUIET_ZONE_M) / cell_mm).astype(int)
+    index = np.floor((centres_mm - 1000.0 * quiet_zone_m) / cell_mm).astype(int)
     inside = (index >= 0) & (index < cells.shape[0])
     clipped = np.clip(index, 0, cells.shape[0] - 1)
     image = cells[np.ix_(clipped, clipped)]
@@ -265,6 +281,60 @@ def _draw_plate_page(ax, sheet: _Sheet, placement: MarkerPlacement) -> None:
         ax.text(MARGIN_MM + 4.0, y, text, ha="left", va="top", fontsize=size, weight=weight)
         y -= 2.2 + size * MM_PER_INCH / 72.0
     _scale_bar(ax, MARGIN_MM + 4.0, y - 8.0)
+
+
+def _draw_landmark_page(ax, sheet: _Sheet, marker: LandmarkMarker, quiet_zone_m: float) -> None:
+    side = plate_side_mm(marker, quiet_zone_m)
+    left = 0.5 * (sheet.width_mm - side)
+    top = sheet.height_mm - MARGIN_MM - _PLATE_HEAD_MM
+    bottom = top - side
+    _draw_raster(ax, plate_image(marker, PDF_DOTS_PER_MM, quiet_zone_m), left, bottom, side, side)
+    ax.add_patch(
+        Rectangle(
+            (left, bottom), side, side, fill=False, edgecolor=_CUT_GREY, linewidth=0.3, zorder=3
+        )
+    )
+    up = _direction_words(marker.rotation[:, 1], _WORLD_DIRECTION_WORDS)
+    ax.text(
+        sheet.width_mm / 2,
+        top + 3.0,
+        f"\u25b2 TOP EDGE of the marker: mount it pointing {up}",
+        ha="center",
+        va="bottom",
+        fontsize=14,
+        weight="bold",
+    )
+    size_mm = 1000.0 * marker.size_m
+    x, y, z = 1000.0 * marker.position_m
+    facing = _direction_words(marker.rotation[:, 2], _WORLD_DIRECTION_WORDS)
+    lines = [
+        (f"WALL LANDMARK  \u00b7  marker id {marker.marker_id}", 24, "bold"),
+        (
+            f"ArUco {layout.DICTIONARY_NAME}; black square {size_mm:.1f} x {size_mm:.1f} mm; "
+            f"white quiet zone {1000.0 * quiet_zone_m:.0f} mm each side: plate {side:.1f} mm, "
+            "cut on the thin grey line",
+            13,
+            "normal",
+        ),
+        (
+            f"Goes on a wall, printed face towards {facing}; marker centre at x = {x:.0f}, "
+            f"y = {y:.0f}, z = {z:.0f} mm (arena frame: origin on the floor at the arena's centre, "
+            "x east, y north)",
+            13,
+            "normal",
+        ),
+        (
+            "Print at 100% / actual size (no 'fit to page'); the 10 cm bar below must measure "
+            f"100 mm ({sheet.name} sheet)",
+            13,
+            "bold",
+        ),
+    ]
+    y_text = bottom - 8.0
+    for text, size, weight in lines:
+        ax.text(MARGIN_MM + 4.0, y_text, text, ha="left", va="top", fontsize=size, weight=weight)
+        y_text -= 2.2 + size * MM_PER_INCH / 72.0
+    _scale_bar(ax, MARGIN_MM + 4.0, y_text - 8.0)
 
 
 def _draw_board_page(ax, sheet: _Sheet, spec: BoardSpec) -> None:
@@ -547,15 +617,21 @@ def _draw_placement_page(ax, sheet: _Sheet, placements, pages: dict, spec: Board
 
 
 def write_plates_pdf(
-    path: str | os.PathLike, paper: str = "A4", board_spec: BoardSpec = DEFAULT_BOARD
+    path: str | os.PathLike,
+    paper: str = "A4",
+    board_spec: BoardSpec = DEFAULT_BOARD,
+    landmarks: LandmarkMap | None = None,
 ) -> dict:
-    """Writes the placement sheet, the calibration board and every plate of
-    ``perception.layout.default_layout()`` to one PDF at true scale; returns a summary.
+    """Writes the placement sheet, the calibration board, every plate of
+    ``perception.layout.default_layout()`` and, if given, every wall landmark of ``landmarks`` (an
+    arena's marker map, e.g. ``models/arena/landmarks.toml``) to one PDF at true scale; returns a
+    summary.
 
     Returns a dict: "path", "paper", "pages" (one per page, in order: "page" from 1, "content",
     "sheet", "width_mm", "height_mm"), "plates" (one per placement: "marker_id", "robot", "face",
-    "size_mm" (black square), "plate_mm" (with the quiet zone), "page", "sheet") and "board"
-    ("page" and the spec in mm).
+    "size_mm" (black square), "plate_mm" (with the quiet zone), "page", "sheet"), "board"
+    ("page" and the spec in mm) and "landmarks" (one per wall landmark: "marker_id", "size_mm",
+    "plate_mm", "centre_mm" (arena frame), "page", "sheet"; empty without a map).
     """
     if paper not in PAPER_SERIES:
         raise ValueError(f"unknown paper {paper!r}; allowed: {', '.join(PAPER_SERIES)}")
@@ -576,6 +652,15 @@ def write_plates_pdf(
     placement_sheet = _Sheet(paper, w, h)
     board_page = 2
     plate_pages = {p.marker_id: board_page + 1 + i for i, p in enumerate(placements)}
+    wall = () if landmarks is None else landmarks.markers
+    quiet = layout.QUIET_ZONE_M if landmarks is None else landmarks.quiet_zone_m
+    wall_sheets = [
+        _sheet_for(
+            paper, plate_side_mm(m, quiet) + 2 * MARGIN_MM, plate_side_mm(m, quiet) + head_foot
+        )
+        for m in wall
+    ]
+    first_wall_page = board_page + 1 + len(placements)
 
     pages = []
     with PdfPages(path, metadata={"Title": "PeopleBot marker plates", "CreationDate": None}) as pdf:
@@ -612,6 +697,12 @@ def write_plates_pdf(
                 f"plate {p.robot} {p.face} (id {p.marker_id})",
                 lambda ax, p=p, sheet=sheet: _draw_plate_page(ax, sheet, p),
             )
+        for m, sheet in zip(wall, wall_sheets, strict=True):
+            emit(
+                sheet,
+                f"wall landmark (id {m.marker_id})",
+                lambda ax, m=m, sheet=sheet: _draw_landmark_page(ax, sheet, m, quiet),
+            )
 
     plates = [
         {
@@ -640,4 +731,15 @@ def write_plates_pdf(
         "pages": pages,
         "plates": plates,
         "board": board_summary,
+        "landmarks": [
+            {
+                "marker_id": m.marker_id,
+                "size_mm": 1000.0 * m.size_m,
+                "plate_mm": plate_side_mm(m, quiet),
+                "centre_mm": tuple(float(v) for v in 1000.0 * m.position_m),
+                "page": first_wall_page + i,
+                "sheet": sheet.name,
+            }
+            for i, (m, sheet) in enumerate(zip(wall, wall_sheets, strict=True))
+        ],
     }

@@ -112,11 +112,13 @@ def watch_with_vision(
     progress: bool = True,
     task: TaskConfig = TaskConfig(),
     perturbations: PerturbationConfig = PerturbationConfig(),
+    self_localisation: str = "landmarks",
 ) -> ObservedStream:
     """Runs the environment (``task``, with the teacher) with the teacher looping and the student
     watching through its camera (``vision_mode`` 'overhead' or 'head', frames of ``width`` x
-    ``height`` pixels) as ``perturbations`` make it see (their randomness keyed by ``seed``);
-    returns what it saw beside the truth."""
+    ``height`` pixels; the head mode's own pose by ``self_localisation``, see
+    ``observers.StudentVision``) as ``perturbations`` make it see (their randomness keyed by
+    ``seed``); returns what it saw beside the truth."""
     if vision_mode not in ("overhead", "head"):
         raise ValueError(f"vision_mode must be 'overhead' or 'head', got {vision_mode!r}")
     if n_steps <= 0:
@@ -127,7 +129,12 @@ def watch_with_vision(
     timestep = env.reset()
     calibration = Calibration(env.physics, width, height)
     vision = student_vision(
-        vision_mode, calibration, perturbations, env.task.control_timestep, seed
+        vision_mode,
+        calibration,
+        perturbations,
+        env.task.control_timestep,
+        seed,
+        self_localisation=self_localisation,
     )
     start = np.asarray(timestep.observation["student_pose"])
     vision.reset(start, timestep.observation["student_wheel_angles"])

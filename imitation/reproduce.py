@@ -193,6 +193,7 @@ def stage_recognition(config: RunConfig, folder: pathlib.Path, model, encoder) -
             config.vision.height,
             task=config.world_config(),
             perturbations=config.perturbations,
+            self_localisation=config.vision.self_localisation,
         )
     if observed is not None:
 

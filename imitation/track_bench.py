@@ -8,6 +8,10 @@ estimate is compared with the simulator's pose. Two viewpoints:
 - head: the student's pan-tilt camera aimed at the teacher (1 to 3 m away), seeing its side, back or
   front markers; the camera's extrinsics come from the student's own pose and head angles through
   ``perception.pantilt.head_camera``, as they would on the real robot.
+
+Over time (``sequence``): tracking's speed and accuracy while the teacher loops, the student
+standing; and (``self_localisation``) the student's own pose while it drives about the arena,
+by odometry from its known start against the wall landmarks from an unknown one.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from perception import layout as marker_layout
 from perception.markers import DetectorConfig
 from perception.pantilt import PanTiltLimits, aim_at, head_camera
 from perception.pipeline import Tracker
+from perception.pose import wrap_radians
 from perception.wallframe import wrap_degrees
 
 CATEGORIES = ("anywhere", "near_wall", "corner", "docked")
@@ -195,6 +200,9 @@ def run(
         "seed": seed,
         "viewpoints": results,
         "sequence": sequence_timing(width, height, seed, n_steps=max(100, n_samples)),
+        "self_localisation": self_localisation_run(
+            width, height, seed, n_steps=max(300, 3 * n_samples)
+        ),
     }
     if out_path is not None:
         out_path = pathlib.Path(out_path)
@@ -219,47 +227,69 @@ def sequence_timing(
     observable renders each control step while the teacher loops, and the student's vision
     (:class:`~imitation.observers.StudentVision`, ``Tracker.update`` searching each frame)
     follows the robots - both from the overhead camera; the teacher from the head camera, with the
-    student's odometry and the pan-tilt controller steering the head. Returns per viewpoint the
-    steps/s without the camera, with it, and with tracking, the render and tracking times per
-    frame, tracking's share of the render time and the tracked teacher's position error. Tracking
-    is timed around each vision update; rendering is the environment step's time with the camera
-    less its time without."""
+    student's own pose from odometry (``head``, from its known start) or from the wall landmarks
+    (``head_landmarks``, from an unknown start, the head shared between the teacher and the
+    landmarks). Returns per viewpoint the steps/s without the camera, with it, and with tracking,
+    the render and tracking times per frame, tracking's share of the render time and the tracked
+    teacher's position error; the head viewpoints also the student's own-pose errors (from the
+    first step it has a pose) and ``head_landmarks`` the steps to its first pose and the glances.
+    Tracking is timed around each vision update; rendering is the environment step's time with
+    the camera less its time without."""
 
-    def run_loop(view, track):  # returns env.step seconds, vision seconds, position errors
+    def run_loop(view, track, self_localisation="odometry"):
         env = load(seed=seed, cameras=(view,) if view else (), width=width, height=height)
         timestep = env.reset()
         vision = None
         if track:
-            vision = StudentVision(view, Calibration(env.physics, width, height))
+            vision = StudentVision(
+                view,
+                Calibration(env.physics, width, height),
+                self_localisation=self_localisation,
+            )
             vision.reset(
                 timestep.observation["student_pose"], timestep.observation["student_wheel_angles"]
             )
         spec, dt = env.action_spec(), env.task.control_timestep
-        errors = []
+        errors, own_errors, first_pose = [], [], None
         step_s = track_s = 0.0
         for i in range(n_steps):
             if vision is not None:
                 t0 = time.perf_counter()
-                pose = vision.update(timestep.observation, i * dt, dt)["teacher"]
+                poses = vision.update(timestep.observation, i * dt, dt)
                 track_s += time.perf_counter() - t0
+                pose, own = poses["teacher"], poses["student"]
                 if pose is not None:
                     truth = timestep.observation["teacher_pose"]
                     errors.append(100 * math.hypot(pose[0] - truth[0], pose[1] - truth[1]))
+                if own is not None:
+                    first_pose = i if first_pose is None else first_pose
+                    truth = timestep.observation["student_pose"]
+                    own_errors.append(
+                        (
+                            100 * math.hypot(own[0] - truth[0], own[1] - truth[1]),
+                            abs(math.degrees(float(wrap_radians(own[2] - truth[2])))),
+                        )
+                    )
             head = (0.0, 0.0) if vision is None else vision.head_command
             action = make_action(spec, (0.0, 0.0), head)
             t0 = time.perf_counter()
             timestep = env.step(action)
             step_s += time.perf_counter() - t0
         env.close()
-        return step_s, track_s, errors
+        glances = getattr(getattr(vision, "gaze", None), "glances_", None)
+        return step_s, track_s, errors, np.asarray(own_errors).reshape(-1, 2), first_pose, glances
 
-    physics_s, _, _ = run_loop(None, False)
+    physics_s = run_loop(None, False)[0]
     out = {"steps": n_steps}
-    for view in ("overhead", "head"):
-        render_s, track_s, errors = run_loop(view, True)
+    for view, method in (
+        ("overhead", "odometry"),
+        ("head", "odometry"),
+        ("head", "landmarks"),
+    ):
+        render_s, track_s, errors, own, first_pose, glances = run_loop(view, True, method)
         render_per_frame = (render_s - physics_s) / n_steps
         track_per_frame = track_s / n_steps
-        out[view] = {
+        row = {
             "steps_per_s_without_camera": n_steps / physics_s,
             "steps_per_s_with_camera": n_steps / render_s,
             "steps_per_s_with_camera_and_tracking": n_steps / (render_s + track_s),
@@ -268,5 +298,83 @@ def sequence_timing(
             "tracking_share_of_render_time": track_per_frame / render_per_frame,
             "teacher_seen_fraction": len(errors) / n_steps,
             "tracked_teacher_position_error_cm": _stats(np.asarray(errors)),
+        }
+        if view == "head":
+            row["own_position_error_cm"] = _stats(own[:, 0])
+            row["own_heading_error_deg"] = _stats(own[:, 1])
+        if method == "landmarks":
+            row["steps_to_first_own_pose"] = first_pose
+            row["glances"] = glances
+        out[view if method == "odometry" else "head_landmarks"] = row
+    return out
+
+
+def _wander(observation, rng, state: dict) -> tuple[float, float]:
+    """Returns the bench driver's wheel command ``(m/s, rad/s)`` from the true poses: forward with
+    a little steering; near a wall, the table or the teacher it turns in place for 1-3 s, except
+    that one time in six at a wall it drives on into it for 2 s (the wheels slip)."""
+    x, y, yaw = observation["student_pose"]
+    teacher = np.asarray(observation["teacher_pose"][:2])
+    if state["push"] > 0:
+        state["push"] -= 1
+        return 0.35, 0.0
+    if state["turn"] > 0:
+        state["turn"] -= 1
+        return 0.0, math.radians(60.0)
+    ahead = np.array([x + 0.6 * math.cos(yaw), y + 0.6 * math.sin(yaw)])
+    if np.hypot(*(ahead - teacher)) < 0.9 or np.hypot(x - teacher[0], y - teacher[1]) < 0.8:
+        state["turn"] = int(rng.integers(10, 30))
+        return 0.0, 0.0
+    if np.max(np.abs(ahead)) > 1.75 or (abs(ahead[0]) < 0.7 and ahead[1] > 1.35):
+        if rng.random() < 1.0 / 6.0:
+            state["push"] = 20
+        else:
+            state["turn"] = int(rng.integers(10, 30))
+        return 0.0, 0.0
+    return 0.35, float(rng.normal(0.0, 0.2))
+
+
+def self_localisation_run(
+    width: int = 320, height: int = 240, seed: int = 0, n_steps: int = 600
+) -> dict:
+    """The student's own pose while it drives (``_wander``, seeded, the same path for both) and
+    watches the looping teacher through its head camera, per method: 'odometry' (from the known
+    start) and 'landmarks' (from an unknown start). Returns per method the own position and
+    heading errors (median, p95; from the first step with a pose), the steps to that pose, the
+    teacher's seen fraction, the glances at landmarks and the vision time per step (ms)."""
+    out = {"steps": n_steps}
+    for method in ("odometry", "landmarks"):
+        env = load(seed=seed, cameras=("head",), width=width, height=height)
+        timestep = env.reset()
+        spec, dt = env.action_spec(), env.task.control_timestep
+        vision = StudentVision(
+            "head", Calibration(env.physics, width, height), self_localisation=method
+        )
+        vision.reset(
+            timestep.observation["student_pose"], timestep.observation["student_wheel_angles"]
+        )
+        rng, state = np.random.default_rng(seed), {"push": 0, "turn": 0}
+        own, seen, first, vision_s = [], 0, None, 0.0
+        for i in range(n_steps):
+            t0 = time.perf_counter()
+            poses = vision.update(timestep.observation, i * dt, dt)
+            vision_s += time.perf_counter() - t0
+            seen += poses["teacher"] is not None
+            if poses["student"] is not None:
+                first = i if first is None else first
+                e = poses["student"] - timestep.observation["student_pose"]
+                own.append((100 * math.hypot(e[0], e[1]), abs(math.degrees(wrap_radians(e[2])))))
+            command = _wander(timestep.observation, rng, state)
+            timestep = env.step(make_action(spec, command, vision.head_command))
+        env.close()
+        own = np.asarray(own).reshape(-1, 2)
+        gaze = getattr(vision, "gaze", None)
+        out[method] = {
+            "own_position_error_cm": _stats(own[:, 0]),
+            "own_heading_error_deg": _stats(own[:, 1]),
+            "steps_to_first_own_pose": first,
+            "teacher_seen_fraction": seen / n_steps,
+            "glances": None if gaze is None else gaze.glances_,
+            "vision_ms_per_step": 1000 * vision_s / n_steps,
         }
     return out

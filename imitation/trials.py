@@ -60,10 +60,15 @@ def trial_plan(config: RunConfig, policies=None) -> list[PlannedTrial]:
 
 
 def student_environment(config: RunConfig):
-    """Returns the run's world with the student alone (and the overhead camera in that vision
-    mode; the student robot's actuation and body perturbations), reset."""
+    """Returns the run's world with the student alone (and the overhead camera, or the head camera
+    when the head mode localises by landmarks; the student robot's actuation and body
+    perturbations), reset."""
     vision = config.vision
-    cameras = ("overhead",) if vision.mode == "overhead" else ()
+    cameras = ()
+    if vision.mode == "overhead":
+        cameras = ("overhead",)
+    elif vision.mode == "head" and vision.self_localisation == "landmarks":
+        cameras = ("head",)  # the student looks at the wall landmarks
     env = load(
         config.world_config(
             with_teacher=False, cameras=cameras, width=vision.width, height=vision.height
@@ -101,6 +106,7 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
         config.task.control_timestep,
         [config.seed] if rng is None else rng,
         watch_teacher=False,
+        self_localisation=config.vision.self_localisation,
     )
     return performance.StudentAgent(
         model,
@@ -157,9 +163,12 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
         result = run_planned_trial(
             config, env, item, item.policy, models.get(item.policy), calibration
         )
+        # The estimate of step k is made from the observation before the step, i.e. the pose
+        # after step k - 1 (the start for k = 0); trace[k] is the pose after step k.
         est = result.estimate
+        truth_then = np.vstack([np.asarray(item.start, dtype=float)[None, :], result.trace[:-1]])
         valid = np.all(np.isfinite(est), axis=1)
-        own_error = np.hypot(*(est[valid, :2] - result.trace[valid, :2]).T)
+        own_error = np.hypot(*(est[valid, :2] - truth_then[valid, :2]).T)
         out.append(
             TrialRecord(
                 row=item.row,

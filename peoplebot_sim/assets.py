@@ -25,6 +25,8 @@ TABLE_XML = MODELS_DIR / "arena" / "table.xml"
 OBJECT_XML = MODELS_DIR / "arena" / "object.xml"
 #: The simulated arena as an arena file (``perception.arenafile``), for ``peoplebot watch``.
 ARENA_TOML = MODELS_DIR / "arena" / "arena.toml"
+#: The simulated arena's wall landmarks (``perception.landmarks.read_landmark_map``).
+LANDMARKS_TOML = MODELS_DIR / "arena" / "landmarks.toml"
 
 #: Texture pixels per marker cell (a 4x4 marker with its border has 6 cells a side).
 _PIXELS_PER_CELL = 20
@@ -48,6 +50,8 @@ def marker_png(marker_id: int, size_m: float, quiet_zone_m: float = layout.QUIET
     return encoded.tobytes()
 
 
-def marker_texture_asset(marker_id: int, size_m: float) -> mjcf.Asset:
+def marker_texture_asset(
+    marker_id: int, size_m: float, quiet_zone_m: float = layout.QUIET_ZONE_M
+) -> mjcf.Asset:
     """Returns the PNG of a marker as an in-memory MJCF asset."""
-    return mjcf.Asset(contents=marker_png(marker_id, size_m), extension=".png")
+    return mjcf.Asset(contents=marker_png(marker_id, size_m, quiet_zone_m), extension=".png")

@@ -11,6 +11,7 @@ from dm_control.composer.observation import observable
 
 from peoplebot_sim import assets
 from perception import layout
+from perception.landmarks import LandmarkMap, read_landmark_map
 from perception.wallframe import ArenaGeometry
 
 #: How far the object stands behind the table's front edge, metres.
@@ -152,11 +153,50 @@ class GraspObject(_FileEntity):
         return self._mjcf_root.find("body", "object")
 
 
-class Arena(_FileEntity):
-    """The walled arena with its cameras (``models/arena/arena.xml``)."""
+#: Thickness of a wall landmark's plate, metres (its printed face stands this far off the wall).
+LANDMARK_PLATE_THICKNESS_M = 0.004
 
-    def _build(self):
+
+class Arena(_FileEntity):
+    """The walled arena with its cameras (``models/arena/arena.xml``) and its wall landmarks
+    (``models/arena/landmarks.toml``), added as plates ``landmark_<id>``."""
+
+    def _build(self, landmarks: LandmarkMap | None = None):
         super()._build(assets.ARENA_XML)
+        self._landmarks = (
+            read_landmark_map(assets.LANDMARKS_TOML) if landmarks is None else landmarks
+        )
+        half_thickness = 0.5 * LANDMARK_PLATE_THICKNESS_M
+        for marker in self._landmarks.markers:
+            name = f"landmark_{marker.marker_id}"
+            texture = self._mjcf_root.asset.add(
+                "texture",
+                name=f"{name}_tex",
+                type="2d",
+                file=assets.marker_texture_asset(
+                    marker.marker_id, marker.size_m, self._landmarks.quiet_zone_m
+                ),
+            )
+            material = self._mjcf_root.asset.add("material", name=f"{name}_mat", texture=texture)
+            # The box's +z face is the printed face; its x and y axes are the marker's.
+            half = 0.5 * marker.size_m + self._landmarks.quiet_zone_m
+            self._mjcf_root.worldbody.add(
+                "geom",
+                name=name,
+                type="box",
+                size=(half, half, half_thickness),
+                pos=marker.position_m - half_thickness * marker.rotation[:, 2],
+                xyaxes=np.concatenate([marker.rotation[:, 0], marker.rotation[:, 1]]),
+                material=material,
+                contype=0,
+                conaffinity=0,
+                group=2,
+            )
+
+    @property
+    def landmarks(self) -> LandmarkMap:
+        """Returns the wall landmarks the arena carries."""
+        return self._landmarks
 
     @property
     def overhead_camera(self):

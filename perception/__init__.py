@@ -1,10 +1,22 @@
 """Perception: what the student sees.
 
-Marker tracking (OpenCV ArUco), camera geometry and the paper's wall frame. Pure numpy and OpenCV:
-this package never imports mujoco or dm_control, so it runs unchanged on a real robot's images.
+Marker tracking (OpenCV ArUco), camera geometry, the paper's wall frame and self-localisation from
+wall landmarks. Pure numpy and OpenCV: this package never imports mujoco or dm_control, so it runs
+unchanged on a real robot's images.
 """
 
 from perception.camera import PinholeCamera, look_at_rotation
+from perception.gaze import GazeConfig, GazeController
+from perception.landmarks import (
+    LandmarkFix,
+    LandmarkLocator,
+    LandmarkMap,
+    LandmarkMarker,
+    LocatorConfig,
+    landmark_view,
+    read_landmark_map,
+)
+from perception.localisation import LocalisationEstimate, LocaliserConfig, SelfLocaliser
 from perception.markers import DetectorConfig, MarkerDetection, MarkerDetector
 from perception.motion import (
     DIRECTIVES,
@@ -43,8 +55,17 @@ __all__ = [
     "DirectiveAgreement",
     "DirectiveConfig",
     "FrameResult",
+    "GazeConfig",
+    "GazeController",
     "HeadMount",
     "KalmanTrack",
+    "LandmarkFix",
+    "LandmarkLocator",
+    "LandmarkMap",
+    "LandmarkMarker",
+    "LocalisationEstimate",
+    "LocaliserConfig",
+    "LocatorConfig",
     "MarkerDetection",
     "MarkerDetector",
     "PanTiltCommand",
@@ -52,6 +73,7 @@ __all__ = [
     "PanTiltLimits",
     "PinholeCamera",
     "RobotPoseEstimate",
+    "SelfLocaliser",
     "TrackEstimate",
     "TrackedRobot",
     "Tracker",
@@ -64,7 +86,9 @@ __all__ = [
     "head_camera",
     "infer_directive",
     "infer_directives",
+    "landmark_view",
     "look_at_rotation",
+    "read_landmark_map",
     "wall_to_world",
     "world_to_wall",
     "wrap_degrees",

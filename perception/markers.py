@@ -134,6 +134,26 @@ class DetectorConfig:
             )
 
 
+def aruco_detector(config: DetectorConfig = DetectorConfig()) -> cv2.aruco.ArucoDetector:
+    """Returns an OpenCV ArUco detector of ``DICTIONARY_NAME`` set up as ``config`` says (every id
+    of the dictionary; callers keep the ids they expect)."""
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, DICTIONARY_NAME))
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = CORNER_REFINEMENTS[config.corner_refinement]
+    params.cornerRefinementWinSize = config.subpix_window_px
+    params.minMarkerPerimeterRate = config.min_marker_perimeter_rate
+    params.adaptiveThreshConstant = config.threshold_constant
+    params.minDistanceToBorder = config.min_distance_to_border_px
+    params.perspectiveRemovePixelPerCell = config.bit_pixels_per_cell
+    params.perspectiveRemoveIgnoredMarginPerCell = config.bit_margin_per_cell
+    params.errorCorrectionRate = config.error_correction_rate
+    windows = tuple(config.threshold_windows_px)
+    params.adaptiveThreshWinSizeMin = windows[0]
+    params.adaptiveThreshWinSizeMax = windows[-1]
+    params.adaptiveThreshWinSizeStep = windows[1] - windows[0] if len(windows) > 1 else 1
+    return cv2.aruco.ArucoDetector(dictionary, params)
+
+
 @dataclasses.dataclass(frozen=True, eq=False)
 class MarkerDetection:
     """One detected marker.
@@ -251,20 +271,7 @@ class MarkerDetector:
                     f"expected_ids {unknown} are not in the layout; allowed: {sorted(self._by_id)}"
                 )
         self.expected_ids = frozenset(expected)
-        params = cv2.aruco.DetectorParameters()
-        params.cornerRefinementMethod = CORNER_REFINEMENTS[config.corner_refinement]
-        params.cornerRefinementWinSize = config.subpix_window_px
-        params.minMarkerPerimeterRate = config.min_marker_perimeter_rate
-        params.adaptiveThreshConstant = config.threshold_constant
-        params.minDistanceToBorder = config.min_distance_to_border_px
-        params.perspectiveRemovePixelPerCell = config.bit_pixels_per_cell
-        params.perspectiveRemoveIgnoredMarginPerCell = config.bit_margin_per_cell
-        params.errorCorrectionRate = config.error_correction_rate
-        windows = tuple(config.threshold_windows_px)
-        params.adaptiveThreshWinSizeMin = windows[0]
-        params.adaptiveThreshWinSizeMax = windows[-1]
-        params.adaptiveThreshWinSizeStep = windows[1] - windows[0] if len(windows) > 1 else 1
-        self._detector = cv2.aruco.ArucoDetector(self._dictionary, params)
+        self._detector = aruco_detector(config)
 
     def placement(self, marker_id: int) -> MarkerPlacement:
         """Returns the layout entry of ``marker_id``; raises ValueError for an unknown id."""
@@ -272,8 +279,9 @@ class MarkerDetector:
             raise ValueError(f"unknown marker id {marker_id!r}; allowed: {sorted(self._by_id)}")
         return self._by_id[marker_id]
 
-    def detect_corners(self, image) -> list[tuple[int, np.ndarray]]:
-        """Returns ``(marker_id, corners_px (4, 2))`` for each expected marker found, no pose.
+    def detect_all_corners(self, image) -> list[tuple[int, np.ndarray]]:
+        """Returns ``(marker_id, corners_px (4, 2))`` for every marker of the dictionary found,
+        expected or not (one detection pass to share, e.g. with the wall landmarks), no pose.
 
         Args:
           image: the image (see :meth:`detect`).
@@ -287,8 +295,17 @@ class MarkerDetector:
         return [
             (int(i), np.asarray(c, dtype=float).reshape(4, 2) - offset)
             for i, c in zip(ids.ravel(), corners, strict=True)
-            if int(i) in self.expected_ids
         ]
+
+    def detect_corners(self, image, found=None) -> list[tuple[int, np.ndarray]]:
+        """Returns ``(marker_id, corners_px (4, 2))`` for each expected marker found, no pose.
+
+        Args:
+          image: the image (see :meth:`detect`); not read when ``found`` is given.
+          found: this image's :meth:`detect_all_corners`, from a shared pass.
+        """
+        found = self.detect_all_corners(image) if found is None else found
+        return [(i, c) for i, c in found if i in self.expected_ids]
 
     def detect(self, image, camera: PinholeCamera | None = None) -> tuple[MarkerDetection, ...]:
         """Returns the expected markers seen in ``image``, sorted by id, each with its pose.

@@ -225,3 +225,18 @@ class PanTiltController:
         self.pan_deg_ += float(np.clip(goal_pan - self.pan_deg_, -max_pan, max_pan))
         self.tilt_deg_ += float(np.clip(goal_tilt - self.tilt_deg_, -max_tilt, max_tilt))
         return PanTiltCommand(self.pan_deg_, self.tilt_deg_, pan, tilt, reachable)
+
+    def step_to(self, pan_deg: float, tilt_deg: float, dt_s: float) -> PanTiltCommand:
+        """Moves the head towards the angles ``(pan_deg, tilt_deg)`` (clipped to the limits) for
+        ``dt_s`` seconds at the rate limits; returns the command (a glance at landmarks)."""
+        if not np.isfinite(dt_s) or dt_s <= 0:
+            raise ValueError(f"dt_s must be a positive number of seconds, got {dt_s!r}")
+        check_finite(pan_deg=pan_deg, tilt_deg=tilt_deg)
+        lim = self.limits
+        goal_pan = float(np.clip(pan_deg, lim.pan_min_deg, lim.pan_max_deg))
+        goal_tilt = float(np.clip(tilt_deg, lim.tilt_min_deg, lim.tilt_max_deg))
+        max_pan, max_tilt = lim.pan_rate_deg_s * dt_s, lim.tilt_rate_deg_s * dt_s
+        self.pan_deg_ += float(np.clip(goal_pan - self.pan_deg_, -max_pan, max_pan))
+        self.tilt_deg_ += float(np.clip(goal_tilt - self.tilt_deg_, -max_tilt, max_tilt))
+        reachable = goal_pan == pan_deg and goal_tilt == tilt_deg
+        return PanTiltCommand(self.pan_deg_, self.tilt_deg_, pan_deg, tilt_deg, reachable)

@@ -116,6 +116,7 @@ class Tracker:
         *,
         marker_poses: bool = False,
         predictions: dict | None = None,
+        found: list | None = None,
     ) -> FrameResult:
         """Returns the per-robot poses in one image from a full detection (no filtering).
 
@@ -127,6 +128,9 @@ class Tracker:
           predictions: robot name -> a predicted ``(x_m, y_m, yaw_rad)`` (a tracker's) to start the
             fit from instead of a marker's PnP pose; a fit from it that misses the corners by more
             than 2 px is redone from the PnP pose.
+          found: this image's ``(marker_id, corners_px)`` of every id, from a detection pass
+          shared with other users (``MarkerDetector.detect_all_corners`` with the same settings);
+          None detects here.
 
         A robot seen only by its top plate is posed in closed form
         (:func:`~perception.pose.planar_pose_from_horizontal_corners`); one with a side plate in
@@ -136,7 +140,7 @@ class Tracker:
         """
         robots = self._check_robots(robots)
         gray = self._gray(image, camera)
-        found = None if marker_poses else self.detector.detect_corners(gray)
+        found = None if marker_poses else self.detector.detect_corners(gray, found)
         if found is None or len({i for i, _ in found}) < len(found):
             detections = self.detector.detect(gray, camera)
             poses = estimate_robot_poses(
@@ -197,9 +201,15 @@ class Tracker:
         return None
 
     def update(
-        self, image, camera: PinholeCamera, time_s: float, robots: Iterable[str] | None = None
+        self,
+        image,
+        camera: PinholeCamera,
+        time_s: float,
+        robots: Iterable[str] | None = None,
+        found: list | None = None,
     ) -> dict[str, TrackedRobot]:
-        """Estimates the robots in ``image`` and advances their tracks to ``time_s`` (seconds).
+        """Estimates the robots in ``image`` and advances their tracks to ``time_s`` (seconds);
+        ``found``: a shared detection pass (see :meth:`estimate`).
 
         Every robot in ``robots`` (default the tracker's) gets a step: fused if seen, predicted if
         not, lost after the coast time. A robot seen by a side plate is fitted from its track's
@@ -207,7 +217,7 @@ class Tracker:
         """
         robots = self._check_robots(robots)
         predictions = {robot: self.tracks[robot].predict_pose(time_s) for robot in robots}
-        frame = self.estimate(image, camera, robots, predictions=predictions)
+        frame = self.estimate(image, camera, robots, predictions=predictions, found=found)
         self.last_frame = frame
         out = {}
         for robot in robots:

@@ -96,11 +96,15 @@ def test_student_actions_with_the_overhead_camera_satisfy_the_spec(trained_assoc
 
 
 def test_student_actions_with_the_head_camera_satisfy_the_spec(student_env, trained_associator):
-    """Head mode performing alone: the own pose is odometry; the head is not commanded."""
+    """Head mode performing alone by odometry: the own pose is odometry; the head is not
+    commanded."""
     spec = student_env.action_spec()
     for word in WORDS:
         vision = StudentVision(
-            "head", Calibration(student_env.physics, WIDTH, HEIGHT), watch_teacher=False
+            "head",
+            Calibration(student_env.physics, WIDTH, HEIGHT),
+            watch_teacher=False,
+            self_localisation="odometry",
         )
         agent = StudentAgent(
             trained_associator,
@@ -112,6 +116,54 @@ def test_student_actions_with_the_head_camera_satisfy_the_spec(student_env, trai
         actions = drive_and_check(student_env, agent, performance.FIG4_START, 30)
         assert agent.own_pose is not None
         np.testing.assert_array_equal(actions[:, 4:], 0.0)
+
+
+def test_student_performing_by_landmarks_finds_itself_and_looks_at_them(trained_associator):
+    """Head mode performing alone by landmarks (the default), from a start it is not told: it
+    finds itself within 3 s, then stays within 3 cm and 2 deg of the truth, and the head moves
+    (it looks at the landmarks); every action satisfies the spec."""
+    env = task.load(with_teacher=False, seed=0, cameras=("head",), width=WIDTH, height=HEIGHT)
+    vision = StudentVision("head", Calibration(env.physics, WIDTH, HEIGHT), watch_teacher=False)
+    agent = StudentAgent(
+        trained_associator,
+        "go",
+        vision,
+        encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+        env.action_spec(),
+    )
+    start = (-0.6, -1.0, 1.2)
+    env.task.set_start(student_pose=start)
+    timestep = env.reset()
+    agent.reset(timestep, start)
+    errors, heads = [], []
+    for step in range(40):
+        action = agent.step(timestep)
+        env.action_spec().validate(action)
+        heads.append(action[4:])
+        if agent.own_pose is None:
+            assert step < 30, "the student should find itself within 3 s"
+        else:
+            truth = timestep.observation["student_pose"]
+            heading = abs((agent.own_pose[2] - truth[2] + np.pi) % (2 * np.pi) - np.pi)
+            errors.append((np.hypot(*(agent.own_pose[:2] - truth[:2])), np.degrees(heading)))
+        timestep = env.step(action)
+    env.close()
+    errors = np.array(errors)
+    assert len(errors) >= 10
+    assert errors[:, 0].max() < 0.03 and errors[:, 1].max() < 2.0, errors
+    assert np.any(np.array(heads) != 0)
+
+
+def test_landmarks_need_the_head_camera(student_env):
+    vision = StudentVision("head", Calibration(student_env.physics, WIDTH, HEIGHT))
+    timestep = student_env.reset()
+    vision.reset(None, timestep.observation["student_wheel_angles"])
+    with pytest.raises(ValueError, match="cameras=\\('head',\\)"):
+        vision.update(timestep.observation, 0.0, 0.1)
+    with pytest.raises(ValueError, match="vision.self_localisation.*landmarks, odometry"):
+        RunConfig.quick().replace({"vision.self_localisation": "gps"})
+    with pytest.raises(ValueError, match="'gps'"):
+        StudentVision("head", self_localisation="gps")
 
 
 def test_head_camera_pan_tilt_commands_stay_within_the_spec(trained_associator):

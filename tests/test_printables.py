@@ -1,6 +1,7 @@
 """``peoplebot markers``' PDF: sheet sizes, true scale of the embedded plates, the plate rasters read
 back by OpenCV, and the calibration board's definition."""
 
+import pathlib
 import re
 import zlib
 
@@ -11,6 +12,7 @@ import pytest
 from imitation import printables
 from perception import layout
 from perception.board import DEFAULT_BOARD, BoardSpec, board, board_image
+from perception.landmarks import LandmarkMap, read_landmark_map
 
 POINTS_PER_MM = 72.0 / 25.4
 _IMAGE_DRAW = re.compile(
@@ -176,3 +178,30 @@ def test_board_is_found_and_its_markers_are_not_robot_markers():
     _, robot_ids, _ = cv2.aruco.ArucoDetector(dictionary).detectMarkers(image)
     # OpenCV 5.0 answers None when it finds no marker, 5.1 an empty array.
     assert robot_ids is None or len(robot_ids) == 0
+
+
+def test_wall_landmarks_print_from_the_arenas_map(tmp_path):
+    """Given a marker map, one page per wall landmark after the robots' plates, each at true size
+    and read back by OpenCV as its id; the map's first and last markers stand in for all 19."""
+    full = read_landmark_map(
+        pathlib.Path(__file__).parent.parent / "models" / "arena" / "landmarks.toml"
+    )
+    landmarks = LandmarkMap([full.markers[0], full.markers[-1]], full.quiet_zone_m)
+    summary = printables.write_plates_pdf(tmp_path / "wall.pdf", landmarks=landmarks)
+    pages = _pdf_pages((tmp_path / "wall.pdf").read_bytes())
+    robot_pages = 2 + len(layout.default_layout())
+    assert len(pages) == robot_pages + 2
+    for entry, marker in zip(summary["landmarks"], landmarks.markers, strict=True):
+        assert entry["marker_id"] == marker.marker_id and entry["page"] > robot_pages
+        page = pages[entry["page"] - 1]
+        assert (
+            summary["pages"][entry["page"] - 1]["content"]
+            == f"wall landmark (id {marker.marker_id})"
+        )
+        ((x0, y0, x1, y1),) = page["images"]
+        assert (x1 - x0) / POINTS_PER_MM == pytest.approx(entry["plate_mm"], abs=1e-3)
+        assert entry["plate_mm"] == pytest.approx(1000 * (marker.size_m + 2 * full.quiet_zone_m))
+        image = printables.plate_image(marker, 1.0, full.quiet_zone_m)
+        dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, layout.DICTIONARY_NAME))
+        _, ids, _ = cv2.aruco.ArucoDetector(dictionary).detectMarkers(image)
+        assert ids is not None and ids.ravel().tolist() == [marker.marker_id]

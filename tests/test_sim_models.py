@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from dm_control import mjcf
 
-from peoplebot_sim import assets, directives
+from peoplebot_sim import assets, directives, entities
 from peoplebot_sim.task import ImitationTask, TaskConfig
-from perception import layout
+from perception import landmarks, layout
 from perception.wallframe import ArenaGeometry
 
 MODEL_FILES = {
@@ -242,6 +242,65 @@ def test_composed_robots_carry_their_own_marker_textures():
         geom = model.name2id(f"{placement.robot}/marker_{placement.face}", "geom")
         material = model.id2name(model.geom_matid[geom], "material")
         assert material == f"{placement.robot}/marker_{placement.face}_mat"
+
+
+# ----------------------------------------------------------------------------------- wall landmarks
+def landmark_mismatches(model, landmark_map) -> list[str]:
+    """Returns how the wall landmark plates of a compiled arena differ from ``landmark_map``; empty
+    when they agree.
+
+    A plate is a box geom ``landmark_<id>`` on the world body with the material
+    ``landmark_<id>_mat``: its +z face's centre must be the marker's ``position_m``, its axes the
+    marker's, its half-sides half the marker plus the quiet zone; and no other plate may exist.
+    """
+    problems = []
+    names = [model.id2name(i, "geom") or "" for i in range(model.ngeom)]
+    plates = {n.rsplit("/", 1)[-1] for n in names if n.rsplit("/", 1)[-1].startswith("landmark_")}
+    expected = {f"landmark_{m.marker_id}" for m in landmark_map.markers}
+    problems += [f"{name}: not in the map" for name in sorted(plates - expected)]
+    for marker in landmark_map.markers:
+        name = f"landmark_{marker.marker_id}"
+        if name not in plates:
+            problems.append(f"{name}: no such geom")
+            continue
+        geom = model.name2id(name, "geom")
+        if model.geom_bodyid[geom] != 0:
+            problems.append(f"{name}: not on the world body")
+        rotation = np.empty(9)
+        mujoco.mju_quat2Mat(rotation, model.geom_quat[geom])
+        rotation = rotation.reshape(3, 3)
+        half = model.geom_size[geom]
+        face_centre = model.geom_pos[geom] + half[2] * rotation[:, 2]
+        if not np.allclose(face_centre, marker.position_m, atol=1e-4):
+            problems.append(f"{name}: face centre {face_centre} != map {marker.position_m}")
+        if not np.allclose(rotation, marker.rotation, atol=1e-5):
+            problems.append(f"{name}: axes\n{rotation}\n!= map\n{marker.rotation}")
+        plate_half = 0.5 * marker.size_m + landmark_map.quiet_zone_m
+        if not np.allclose(half[:2], plate_half, atol=1e-6):
+            problems.append(f"{name}: half-sides {half[:2]} != marker/2 + quiet zone {plate_half}")
+        material = model.id2name(model.geom_matid[geom], "material") or ""
+        if not material.endswith(f"{name}_mat"):
+            problems.append(f"{name}: material {material!r}")
+    return problems
+
+
+def test_wall_landmarks_sit_where_the_map_says():
+    landmark_map = landmarks.read_landmark_map(assets.LANDMARKS_TOML)
+    _, physics = composed_scene()
+    assert landmark_mismatches(physics.model, landmark_map) == []
+
+
+def test_landmark_check_fails_when_the_map_and_the_plates_differ():
+    landmark_map = landmarks.read_landmark_map(assets.LANDMARKS_TOML)
+    first, *rest = landmark_map.markers
+    moved = landmarks.LandmarkMarker.facing(
+        first.marker_id, first.size_m, first.position_m + (0.05, 0, 0), first.rotation[:, 2]
+    )
+    arena = entities.Arena(landmarks=landmarks.LandmarkMap([moved, *rest[:-1]]))
+    physics = mjcf.Physics.from_mjcf_model(arena.mjcf_model)
+    problems = landmark_mismatches(physics.model, landmark_map)
+    assert any(f"landmark_{first.marker_id}: face centre" in p for p in problems), problems
+    assert any(f"landmark_{rest[-1].marker_id}: no such geom" in p for p in problems), problems
 
 
 # ------------------------------------------------------------------------------------------ drive
