@@ -122,7 +122,9 @@ class StudentVision:
         if self.uses_landmarks and wheel_angles is not None:
             calibration = self.calibration
             self.localiser = SelfLocaliser(
-                LandmarkLocator(calibration.landmarks, calibration.head_intrinsics),
+                LandmarkLocator(
+                    calibration.landmarks, calibration.head_intrinsics, mount=calibration.head_mount
+                ),
                 config=LocaliserConfig(
                     free_half_side_m=calibration.arena.half_side_m - ROBOT_HALF_WIDTH_M
                 ),
@@ -158,10 +160,7 @@ class StudentVision:
         own = self.odometry.update(*observation["student_wheel_angles"])
         out = {"student": own, "teacher": None}
         if self.watch_teacher:
-            pan, tilt = (math.degrees(a) for a in observation["student_head_angles"])
-            if self.calibration.head_angle_offsets_deg != (0.0, 0.0):
-                pan_zero, tilt_zero = self.calibration.head_angle_offsets_deg
-                pan, tilt = pan + pan_zero, tilt + tilt_zero
+            pan, tilt = self._head_angles_deg(observation)
             camera = head_camera(
                 self.calibration.head_intrinsics, own, pan, tilt, self.calibration.head_mount
             )
@@ -173,6 +172,13 @@ class StudentVision:
             self.head_command = (math.radians(command.pan_deg), math.radians(command.tilt_deg))
         return out
 
+    def _head_angles_deg(self, observation: dict) -> tuple[float, float]:
+        """Returns the head's pan and tilt readings in degrees, with the zero offsets the student's
+        calibration believes."""
+        pan, tilt = (math.degrees(a) for a in observation["student_head_angles"])
+        pan_zero, tilt_zero = self.calibration.head_angle_offsets_deg
+        return pan + pan_zero, tilt + tilt_zero
+
     def _update_landmarks(self, observation: dict, time_s: float, dt: float) -> dict:
         """The head mode with the landmark filter: odometry, then this frame's landmarks, then the
         teacher from the camera posed at the filtered pose, then the head's next command."""
@@ -183,7 +189,7 @@ class StudentVision:
                 "self_localisation='landmarks' needs the head camera's frames: load the "
                 "environment with cameras=('head',)"
             )
-        pan, tilt = (math.degrees(a) for a in observation["student_head_angles"])
+        pan, tilt = self._head_angles_deg(observation)
         image = observation["head_camera"]
         self.localiser.predict_wheels(observation["student_wheel_angles"])
         # One detection pass for the landmarks and the teacher.
@@ -192,7 +198,9 @@ class StudentVision:
         own = self.localisation.pose
         out = {"student": None if own is None else own.copy(), "teacher": None}
         if self.watch_teacher and own is not None:
-            camera = head_camera(self.calibration.head_intrinsics, own, pan, tilt)
+            camera = head_camera(
+                self.calibration.head_intrinsics, own, pan, tilt, self.calibration.head_mount
+            )
             track = self.tracker.update(image, camera, time_s, found=found)["teacher"]
             if track.track.pose is not None:
                 out["teacher"] = track.track.pose.copy()
