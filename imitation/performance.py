@@ -389,11 +389,13 @@ def run_trial(
     trace, estimates, chosen = [], [], []
     n_steps = int(round(seconds / dt))
     for _ in range(n_steps):
+        # The pose the agent acts on (the teacher reads it; a student estimates it).
+        acted_on = np.asarray(timestep.observation["student_pose"], dtype=float)
         action = agent.step(timestep, dt)
         timestep = env.step(action)
         true_pose = np.asarray(timestep.observation["student_pose"], dtype=float)
         trace.append(true_pose)
-        estimates.append(pose_or_nan(getattr(agent, "own_pose", true_pose)))
+        estimates.append(pose_or_nan(getattr(agent, "own_pose", acted_on)))
         chosen.append(agent.directive)
         touching = task.touches_obstacle(env.physics, task.student)
         succeeded = monitor.update(true_pose, touching)

@@ -188,6 +188,8 @@ def test_performance_trials_follow_the_plan(run_folder):
         assert r.wall == planned[key(r)].wall
         assert 0 < r.seconds <= TINY["performance.trial_seconds"] + 1e-9
         assert len(r.end_pose) == 3 and np.all(np.isfinite(r.end_pose))
+        # In the truth mode every policy acts on its true pose: no own-pose error.
+        assert r.own_pose_error_cm_median == 0.0, (r.policy, r.own_pose_error_cm_median)
 
 
 def test_results_md_has_the_tables(run_folder):
