@@ -269,18 +269,8 @@ def _draw_plate_page(ax, sheet: _Sheet, placement: MarkerPlacement) -> None:
             13,
             "normal",
         ),
-        (
-            "Print at 100% / actual size (no 'fit to page'); the 10 cm bar below must measure "
-            f"100 mm ({sheet.name} sheet)",
-            13,
-            "bold",
-        ),
     ]
-    y = bottom - 8.0
-    for text, size, weight in lines:
-        ax.text(MARGIN_MM + 4.0, y, text, ha="left", va="top", fontsize=size, weight=weight)
-        y -= 2.2 + size * MM_PER_INCH / 72.0
-    _scale_bar(ax, MARGIN_MM + 4.0, y - 8.0)
+    _draw_caption(ax, sheet, lines, bottom)
 
 
 def _draw_landmark_page(ax, sheet: _Sheet, marker: LandmarkMarker, quiet_zone_m: float) -> None:
@@ -323,6 +313,15 @@ def _draw_landmark_page(ax, sheet: _Sheet, marker: LandmarkMarker, quiet_zone_m:
             13,
             "normal",
         ),
+    ]
+    _draw_caption(ax, sheet, lines, bottom)
+
+
+def _draw_caption(ax, sheet: _Sheet, lines: list, bottom: float) -> None:
+    """Writes a plate's caption ``(text, font size, weight)`` lines below ``bottom`` (mm), then the
+    print-at-100% instruction and the 10 cm scale bar."""
+    lines = [
+        *lines,
         (
             "Print at 100% / actual size (no 'fit to page'); the 10 cm bar below must measure "
             f"100 mm ({sheet.name} sheet)",
@@ -330,11 +329,11 @@ def _draw_landmark_page(ax, sheet: _Sheet, marker: LandmarkMarker, quiet_zone_m:
             "bold",
         ),
     ]
-    y_text = bottom - 8.0
+    y = bottom - 8.0
     for text, size, weight in lines:
-        ax.text(MARGIN_MM + 4.0, y_text, text, ha="left", va="top", fontsize=size, weight=weight)
-        y_text -= 2.2 + size * MM_PER_INCH / 72.0
-    _scale_bar(ax, MARGIN_MM + 4.0, y_text - 8.0)
+        ax.text(MARGIN_MM + 4.0, y, text, ha="left", va="top", fontsize=size, weight=weight)
+        y -= 2.2 + size * MM_PER_INCH / 72.0
+    _scale_bar(ax, MARGIN_MM + 4.0, y - 8.0)
 
 
 def _draw_board_page(ax, sheet: _Sheet, spec: BoardSpec) -> None:
