@@ -226,18 +226,18 @@ def _centre_text(placement: MarkerPlacement) -> str:
     return f"x = {x:.0f}, y = {y:.0f}, z = {z:.0f} mm"
 
 
-def _draw_plate_page(ax, sheet: _Sheet, placement: MarkerPlacement) -> None:
-    side = plate_side_mm(placement)
+def _draw_plate(ax, sheet: _Sheet, image, side: float, up: str) -> float:
+    """Draws a plate's image ``side`` mm square, centred under the sheet's head, its cut line and
+    the arrow saying which way its top edge points (``up``); returns the plate's bottom (mm)."""
     left = 0.5 * (sheet.width_mm - side)
     top = sheet.height_mm - MARGIN_MM - _PLATE_HEAD_MM
     bottom = top - side
-    _draw_raster(ax, plate_image(placement, PDF_DOTS_PER_MM), left, bottom, side, side)
+    _draw_raster(ax, image, left, bottom, side, side)
     ax.add_patch(
         Rectangle(
             (left, bottom), side, side, fill=False, edgecolor=_CUT_GREY, linewidth=0.3, zorder=3
         )
     )
-    up = _direction_words(placement.rotation[:, 1])
     ax.text(
         sheet.width_mm / 2,
         top + 3.0,
@@ -246,6 +246,18 @@ def _draw_plate_page(ax, sheet: _Sheet, placement: MarkerPlacement) -> None:
         va="bottom",
         fontsize=14,
         weight="bold",
+    )
+    return bottom
+
+
+def _draw_plate_page(ax, sheet: _Sheet, placement: MarkerPlacement) -> None:
+    side = plate_side_mm(placement)
+    bottom = _draw_plate(
+        ax,
+        sheet,
+        plate_image(placement, PDF_DOTS_PER_MM),
+        side,
+        _direction_words(placement.rotation[:, 1]),
     )
     size_mm = 1000.0 * placement.size_m
     quiet_mm = 1000.0 * layout.QUIET_ZONE_M
@@ -275,24 +287,12 @@ def _draw_plate_page(ax, sheet: _Sheet, placement: MarkerPlacement) -> None:
 
 def _draw_landmark_page(ax, sheet: _Sheet, marker: LandmarkMarker, quiet_zone_m: float) -> None:
     side = plate_side_mm(marker, quiet_zone_m)
-    left = 0.5 * (sheet.width_mm - side)
-    top = sheet.height_mm - MARGIN_MM - _PLATE_HEAD_MM
-    bottom = top - side
-    _draw_raster(ax, plate_image(marker, PDF_DOTS_PER_MM, quiet_zone_m), left, bottom, side, side)
-    ax.add_patch(
-        Rectangle(
-            (left, bottom), side, side, fill=False, edgecolor=_CUT_GREY, linewidth=0.3, zorder=3
-        )
-    )
-    up = _direction_words(marker.rotation[:, 1], _WORLD_DIRECTION_WORDS)
-    ax.text(
-        sheet.width_mm / 2,
-        top + 3.0,
-        f"\u25b2 TOP EDGE of the marker: mount it pointing {up}",
-        ha="center",
-        va="bottom",
-        fontsize=14,
-        weight="bold",
+    bottom = _draw_plate(
+        ax,
+        sheet,
+        plate_image(marker, PDF_DOTS_PER_MM, quiet_zone_m),
+        side,
+        _direction_words(marker.rotation[:, 1], _WORLD_DIRECTION_WORDS),
     )
     size_mm = 1000.0 * marker.size_m
     x, y, z = 1000.0 * marker.position_m
