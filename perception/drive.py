@@ -68,7 +68,3 @@ class DriveSpeeds:
 
 # (sign of linear speed, sign of yaw rate) per directive, in DIRECTIVES order.
 _UNIT_COMMANDS = ((1.0, 0.0), (-1.0, 0.0), (0.0, -1.0), (0.0, 1.0))
-
-
-# (sign of linear speed, sign of yaw rate) per directive, in DIRECTIVES order.
-_UNIT_COMMANDS = ((1.0, 0.0), (-1.0, 0.0), (0.0, -1.0), (0.0, 1.0))
