@@ -437,7 +437,7 @@ class Teacher:
         c = self.config
         dock_x, dock_y, dock_yaw = self.dock_pose
         heading_error = wrap_degrees(math.degrees(dock_yaw - yaw))
-        if c.docking == "lane" and self.phase in ("line_up", "face", "approach"):
+        if c.docking == "lane" and self.phase in ("line_up", "approach"):
             directive = self._lane_docking(x, y, yaw)
             if directive is not None:
                 return directive
