@@ -287,14 +287,16 @@ def run(
     state = RunState(folder, config.to_dict(), fresh=fresh)
     try:
         run_config.dump(config, folder / "config.toml")
-        _drop_changed_stages(state)
+        _drop_changed_stages(state, reusing=reuse_from is not None)
         if reuse_from is not None:
             reuse_learning(state, reuse_from)
         encoder = _encoder()
-        for stage in STAGES:
+        for i, stage in enumerate(STAGES):
             if state.done(stage):
                 print(f"[{stage}] done earlier, kept")
                 continue
+            if not state.replacing(stage) and any(state.done(s) for s in STAGES[i + 1 :]):
+                state.forget(STAGES[i + 1 :])  # they read this stage's files, about to change
             if stage == "videos" and not config.videos.enabled:
                 continue
             start = time.perf_counter()
@@ -337,16 +339,21 @@ def _run_stage(stage: str, config: RunConfig, folder: pathlib.Path, encoder, cac
     return filmed, [folder / name for name in (*filmed["videos"], *filmed.get("mcap", ()))]
 
 
-def _drop_changed_stages(state: RunState) -> None:
-    """Forgets the first finished stage whose files are missing or changed, and every stage after
-    it (they run again)."""
+def _drop_changed_stages(state: RunState, reusing: bool = False) -> None:
+    """Marks each finished stage whose files are missing or changed to run again. The stages after
+    it are kept if the rerun writes the same files (``RunState.replace``); with ``reusing`` (a
+    run on another run's streams and networks) a changed streams or learning stage is forgotten
+    with every stage after it, so that both are copied again."""
     for i, stage in enumerate(STAGES):
         if state.done(stage) and not state.intact(stage):
-            print(
-                f"[{stage}] its files are missing or changed: it runs again, with the stages after it"
-            )
-            state.forget(STAGES[i:])
-            return
+            if reusing and stage in ("streams", "learning"):
+                print(f"[{stage}] its files are missing or changed: it runs again, with the "
+                      "stages after it")
+                state.forget(STAGES[i:])
+                return
+            print(f"[{stage}] its files are missing or changed: it runs again (the stages after "
+                  "it too if its files come out different)")
+            state.replace(stage, STAGES[i + 1 :])
 
 
 def collect(config: RunConfig, state: RunState) -> Results:

@@ -125,12 +125,25 @@ class RunState:
 
     def finish(self, stage: str, result, files=(), seconds: float = 0.0) -> None:
         """Records ``stage`` as finished with its (JSON-able) result, the files it wrote (paths in
-        the folder; their content hashes are kept) and its wall-clock seconds."""
-        self.data["stages"][stage] = result
+        the folder; their content hashes are kept) and its wall-clock seconds. A stage run again
+        by ``replace`` that wrote other files or another result makes the stages after it run
+        again too."""
+        self.data["stages"][stage] = json.loads(json.dumps(result))
         self.data["artifacts"][stage] = {
             _relative(path, self.folder): storage.file_digest(path) for path in files
         }
         self.data["seconds"][stage] = float(seconds)
+        earlier = self.data.get("replaced", {}).pop(stage, None)
+        if earlier is not None and (
+            earlier["result"] != self.data["stages"][stage]
+            or earlier["artifacts"] != self.data["artifacts"][stage]
+        ):
+            later = [s for s in earlier["later"] if self.done(s)]
+            if later:
+                print(f"[{stage}] its new files differ from the earlier ones: {', '.join(later)} "
+                      "run again")
+            self.forget(earlier["later"])  # writes the state
+            return
         self._write()
 
     def intact(self, stage: str) -> bool:
@@ -144,9 +157,27 @@ class RunState:
     def forget(self, stages) -> None:
         """Marks ``stages`` as not done (they run again)."""
         for stage in stages:
-            for key in ("stages", "artifacts", "seconds"):
-                self.data[key].pop(stage, None)
+            for key in ("stages", "artifacts", "seconds", "replaced"):
+                self.data.get(key, {}).pop(stage, None)
         self._write()
+
+    def replace(self, stage: str, later) -> None:
+        """Marks ``stage`` as not done, keeping its record: the stages ``later`` (which read its
+        files) stay finished if its rerun writes the same files and result (the run is
+        deterministic), and run again otherwise (see ``finish``)."""
+        record = {
+            "result": self.data["stages"][stage],
+            "artifacts": self.data["artifacts"].get(stage, {}),
+            "later": list(later),
+        }
+        for key in ("stages", "artifacts", "seconds"):
+            self.data[key].pop(stage, None)
+        self.data.setdefault("replaced", {})[stage] = record
+        self._write()
+
+    def replacing(self, stage: str) -> bool:
+        """Returns whether ``stage`` is to run again with its earlier record kept (``replace``)."""
+        return stage in self.data.get("replaced", {})
 
     def _write(self) -> None:
         payload = dict(self.data)

@@ -299,3 +299,40 @@ def test_finished_stream_is_kept(tmp_path, monkeypatch):
 
     monkeypatch.setattr(streams.StreamGenerator, "generate", fail)
     assert generate_resumable(2, 50, tmp_path, "t", chunk=50) == path
+
+
+def test_a_stage_rerun_keeps_the_stages_after_it_only_if_it_writes_the_same_files(tmp_path):
+    """``RunState.replace``: a damaged stage runs again; the stages that read its files stay
+    finished when it writes the same bytes and result, and run again when anything differs (also
+    after the folder is reopened between the two, as after a kill)."""
+    from imitation.runstate import RunState
+
+    config = {"seed": 0}
+    data, later = tmp_path / "data.bin", tmp_path / "later.bin"
+
+    def fresh_state():
+        state = RunState(tmp_path, config)
+        data.write_bytes(b"A")
+        later.write_bytes(b"L")
+        state.finish("first", {"n": 1}, [data])
+        state.finish("second", {"m": 2}, [later])
+        return state
+
+    state = fresh_state()
+    state.replace("first", ["second"])
+    assert not state.done("first") and state.done("second")
+    state.finish("first", {"n": 1}, [data])  # the same bytes and result
+    assert state.done("second") and state.intact("second")
+    state.close()
+
+    for changed_bytes, changed_result in ((b"B", {"n": 1}), (b"A", {"n": 3})):
+        state = fresh_state()
+        state.replace("first", ["second"])
+        state.close()
+        state = RunState(tmp_path, config)  # reopened: the kept record is read back
+        assert state.replacing("first") and state.done("second")
+        data.write_bytes(changed_bytes)
+        state.finish("first", changed_result, [data])
+        assert not state.done("second") and not state.replacing("first")
+        state.close()
+        (tmp_path / "state.json").unlink()
