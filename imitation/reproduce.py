@@ -347,12 +347,16 @@ def _drop_changed_stages(state: RunState, reusing: bool = False) -> None:
     for i, stage in enumerate(STAGES):
         if state.done(stage) and not state.intact(stage):
             if reusing and stage in ("streams", "learning"):
-                print(f"[{stage}] its files are missing or changed: it runs again, with the "
-                      "stages after it")
+                print(
+                    f"[{stage}] its files are missing or changed: it runs again, with the "
+                    "stages after it"
+                )
                 state.forget(STAGES[i:])
                 return
-            print(f"[{stage}] its files are missing or changed: it runs again (the stages after "
-                  "it too if its files come out different)")
+            print(
+                f"[{stage}] its files are missing or changed: it runs again (the stages after "
+                "it too if its files come out different)"
+            )
             state.replace(stage, STAGES[i + 1 :])
 
 

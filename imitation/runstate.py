@@ -140,8 +140,10 @@ class RunState:
         ):
             later = [s for s in earlier["later"] if self.done(s)]
             if later:
-                print(f"[{stage}] its new files differ from the earlier ones: {', '.join(later)} "
-                      "run again")
+                print(
+                    f"[{stage}] its new files differ from the earlier ones: {', '.join(later)} "
+                    "run again"
+                )
             self.forget(earlier["later"])  # writes the state
             return
         self._write()
