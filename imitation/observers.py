@@ -37,6 +37,11 @@ SELF_LOCALISATIONS = ("landmarks", "odometry")
 #: (ARIA's ``RobotWidth 425``, ``peoplebot_sim.entities``), rounded down; it bounds the landmark
 #: filter's estimate.
 ROBOT_HALF_WIDTH_M = 0.2
+#: The PeopleBot's outline around its centre of rotation for the landmark filter's contact model,
+#: metres ``(front, rear, half_width)``: the gripper's paddles reach 0.365 m ahead (0.285 + 0.045 +
+#: 0.035 in ``models/peoplebot/peoplebot.xml``), the chassis box 0.2565 m behind and 0.2125 m to
+#: each side (``chassis_collision``; ARIA's ``RobotLength 513``, ``RobotWidth 425``).
+ROBOT_FOOTPRINT_M = (0.365, 0.2565, 0.2125)
 
 
 def check_vision_mode(mode: str) -> str:
@@ -126,7 +131,9 @@ class StudentVision:
                     calibration.landmarks, calibration.head_intrinsics, mount=calibration.head_mount
                 ),
                 config=LocaliserConfig(
-                    free_half_side_m=calibration.arena.half_side_m - ROBOT_HALF_WIDTH_M
+                    free_half_side_m=calibration.arena.half_side_m - ROBOT_HALF_WIDTH_M,
+                    wall_half_side_m=calibration.arena.half_side_m,
+                    footprint_m=ROBOT_FOOTPRINT_M,
                 ),
             )
             self.localiser.reset(None, wheel_angles=wheel_angles)

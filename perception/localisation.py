@@ -13,6 +13,15 @@ Their errors are independent, zero-mean, with variances growing with the motion 
 
 propagated through the motion's Jacobians (``P <- F P F^T + G Q G^T``).
 
+Contact (with ``wall_half_side_m`` and ``footprint_m``): when a step ends with a corner of the
+robot's footprint, at the estimated pose, within ``contact_margin_m`` of a wall (or beyond it),
+the robot is taken to be touching the wall: the encoders count what the wheels turned, but the
+base may have moved anything from none of it to all of it (pushing on, the wheels slip; turning
+in place, a corner rubbing on the wall may hold it). The step's distance is then applied scaled
+by ``contact_distance_scale`` and its turn by ``contact_turn_scale``, and both get the extra
+standard deviation ``contact_slip_sigma`` times the measured step, so the covariance grows with
+every slipping step instead of staying confident while blind.
+
 Measurement model: a :class:`~perception.landmarks.LandmarkFix`, the pose fitted to every visible
 landmark's corners at once, with the fit's covariance (corner noise ``corner_sigma_px``) plus a
 floor ``fix_floor_sigma`` for what the corner noise does not cover (the head's calibration, the
@@ -65,6 +74,17 @@ class LocaliserConfig:
       single_init_after_steps: searching this many steps without a fix from two landmarks, one
         landmark may initialise the filter (its flip is resolved by the level robot: on synthetic
         corners the error is 2.8 cm median, 20 cm p95, docs/perception.md).
+      wall_half_side_m: the walls' inner faces, metres from the arena's centre along x and y (a
+        square arena centred on the world origin); with ``footprint_m`` it turns on the contact
+        model (module docstring). None: no contact model.
+      footprint_m: the robot's outline around its frame's origin, metres: ``(front, rear,
+        half_width)`` (a rectangle, robot frame, x forward).
+      contact_margin_m: a footprint corner this close to a wall is in contact, metres.
+      contact_distance_scale, contact_turn_scale: the shares of a step's distance and turn in
+        contact that are applied to the state (measured in the simulator: the base moves a median
+        3-22% of the encoders' distance and turns a median 100% of their turn,
+        docs/perception.md).
+      contact_slip_sigma: the extra standard deviation of a step in contact, as a share of it.
       free_half_side_m: where the robot frame's origin can be: within this of the arena's centre
         along x and y (a square arena centred on the world origin, less the robot's half-width);
         an estimate outside is moved back to the edge (wheels slipping against a wall drive the
@@ -82,6 +102,12 @@ class LocaliserConfig:
     init_inflation: float = 4.0
     reject_inflation: float = 2.0
     single_init_after_steps: int = 30
+    wall_half_side_m: float | None = None
+    footprint_m: tuple[float, float, float] | None = None
+    contact_margin_m: float = 0.03
+    contact_distance_scale: float = 0.25
+    contact_turn_scale: float = 1.0
+    contact_slip_sigma: float = 1.0
     free_half_side_m: float | None = None
 
     def __post_init__(self):
@@ -90,7 +116,13 @@ class LocaliserConfig:
             values = value if isinstance(value, tuple) else (value,)
             if field.name == "fix_floor_sigma" and len(values) != 3:
                 raise ValueError(f"fix_floor_sigma must be 3 numbers (m, m, rad), got {value!r}")
-            if field.name == "free_half_side_m" and value is None:
+            if field.name == "footprint_m" and value is not None and len(values) != 3:
+                raise ValueError(
+                    f"footprint_m must be 3 numbers (front, rear, half_width) in metres, got {value!r}"
+                )
+            if field.name in ("free_half_side_m", "wall_half_side_m", "footprint_m") and (
+                value is None
+            ):
                 continue
             if field.name in ("reinit_after", "single_init_after_steps"):
                 if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -105,6 +137,8 @@ class LocaliserConfig:
                     )
                 if field.name == "reject_inflation" and v < 1:
                     raise ValueError(f"reject_inflation must be >= 1, got {value!r}")
+                if field.name.startswith("contact_") and field.name.endswith("_scale") and v > 1:
+                    raise ValueError(f"{field.name} must be in [0, 1], got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -123,6 +157,7 @@ class LocalisationEstimate:
       rejections: fixes rejected in a row so far (a sign the pose may be wrong).
       steps_since_fix: control steps since the last accepted fix (0 this step; counted from the
         start while searching).
+      contact: the last odometry step was taken as slipping against a wall (the contact model).
     """
 
     pose: np.ndarray | None
@@ -134,6 +169,7 @@ class LocalisationEstimate:
     reinitialised: bool = False
     rejections: int = 0
     steps_since_fix: int = 0
+    contact: bool = False
 
     @property
     def marker_ids(self) -> tuple[int, ...]:
@@ -146,6 +182,13 @@ class LocalisationEstimate:
         if self.covariance is None:
             return math.inf
         return float(math.sqrt(max(np.linalg.eigvalsh(self.covariance[:2, :2])[-1], 0.0)))
+
+    @property
+    def heading_sigma_deg(self) -> float:
+        """Returns the heading's standard deviation, degrees (infinite while searching)."""
+        if self.covariance is None:
+            return math.inf
+        return math.degrees(math.sqrt(max(float(self.covariance[2, 2]), 0.0)))
 
 
 class SelfLocaliser:
@@ -188,6 +231,7 @@ class SelfLocaliser:
             self.covariance_ = covariance
         self.rejections_ = 0
         self.steps_since_fix_ = 0
+        self.contact_ = False
         self._wheels = None
         if wheel_angles is not None:
             self._wheels = self._check_wheels(wheel_angles)
@@ -208,6 +252,7 @@ class SelfLocaliser:
             **record,
             rejections=self.rejections_,
             steps_since_fix=self.steps_since_fix_,
+            contact=self.contact_,
         )
 
     @staticmethod
@@ -238,6 +283,13 @@ class SelfLocaliser:
         if self.pose_ is None:
             return
         c = self.config
+        self.contact_ = self.in_contact(distance_m, turn_rad)
+        # The slip's variances, from the measured step (zero out of contact).
+        slip = c.contact_slip_sigma if self.contact_ else 0.0
+        slip_q = np.diag([(slip * distance_m) ** 2, (slip * turn_rad) ** 2])
+        if self.contact_:
+            distance_m *= c.contact_distance_scale
+            turn_rad *= c.contact_turn_scale
         heading = self.pose_[2] + 0.5 * turn_rad
         half = 0.5 * turn_rad
         chord = distance_m * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
@@ -252,6 +304,7 @@ class SelfLocaliser:
                 + c.floor_turn_rad**2,
             ]
         )
+        q = q + slip_q
         self.pose_ = self.pose_ + np.array([chord * cos_h, chord * sin_h, turn_rad])
         self.pose_[2] = float(wrap_radians(self.pose_[2]))
         if c.free_half_side_m is not None:  # the state constraint: projected back inside
@@ -259,6 +312,34 @@ class SelfLocaliser:
             self.pose_[:2] = np.clip(self.pose_[:2], -limit, limit)
         covariance = f @ self.covariance_ @ f.T + g @ q @ g.T
         self.covariance_ = 0.5 * (covariance + covariance.T)
+
+    def footprint_corners(self, pose) -> np.ndarray:
+        """Returns the footprint's corners at ``pose`` (x_m, y_m, yaw_rad), world metres, shape
+        (4, 2) (``config.footprint_m`` must be set)."""
+        front, rear, half_width = self.config.footprint_m
+        local = np.array(
+            [[front, half_width], [front, -half_width], [-rear, -half_width], [-rear, half_width]]
+        )
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        return local @ np.array([[c, s], [-s, c]]) + np.asarray(pose[:2], dtype=float)
+
+    def in_contact(self, distance_m: float, turn_rad: float) -> bool:
+        """Returns True when the step ``(distance_m, turn_rad)`` from the estimated pose ends with
+        a footprint corner within ``contact_margin_m`` of a wall (False without the contact model,
+        a pose or a motion)."""
+        c = self.config
+        if self.pose_ is None or c.wall_half_side_m is None or c.footprint_m is None:
+            return False
+        if distance_m == 0.0 and turn_rad == 0.0:
+            return False
+        half = 0.5 * turn_rad
+        chord = distance_m * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
+        heading = self.pose_[2] + half
+        after = self.pose_ + np.array(
+            [chord * math.cos(heading), chord * math.sin(heading), turn_rad]
+        )
+        reach = np.max(np.abs(self.footprint_corners(after)))
+        return bool(reach > c.wall_half_side_m - c.contact_margin_m)
 
     def fix_covariance(self, fix: LandmarkFix) -> np.ndarray:
         """Returns the measurement covariance R of a fix: its fit's covariance plus the floor."""
