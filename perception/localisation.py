@@ -51,6 +51,9 @@ from perception.odometry import DriveGeometry
 from perception.pose import check_planar_pose, wrap_radians
 
 LOCALISATION_STATUSES = ("searching", "tracking")
+#: The 95% point of chi-square with 2 degrees of freedom: the 95% position ellipse is
+#: ``d^T P_xy^-1 d <= CHI2_2DOF_95``.
+CHI2_2DOF_95 = 5.991
 
 
 @dataclasses.dataclass(frozen=True)
