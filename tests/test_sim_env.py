@@ -251,6 +251,23 @@ def test_bad_renderer_size_raises_naming_the_value():
             FrameRenderer(physics, **size)
 
 
+def test_a_frame_renderer_leaves_the_camera_observables_seeing():
+    """A video's renderer on the environment's physics (its own OpenGL context) must not blind the
+    environment's camera observables (dm_control's context): the head camera still sees the
+    arena after the renderer is made and used, frame for frame as before."""
+    env = task.load(seed=0, cameras=("head",), width=64, height=48)
+    try:
+        still = np.zeros(env.action_spec().shape)
+        env.reset()
+        before = env.step(still).observation["head_camera"].astype(float)
+        with FrameRenderer(env.physics, 64, 48, antialias=True) as renderer:
+            assert renderer.render("overhead").mean() > 20
+            after = env.step(still).observation["head_camera"].astype(float)
+            assert after.mean() > 20 and np.abs(after - before).mean() < 5
+    finally:
+        env.close()
+
+
 @pytest.fixture(scope="module")
 def stepped_env():
     env = task.load(seed=0)
