@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from peoplebot_sim import assets, cameras
+from peoplebot_sim.entities import BASE_RADIUS_M
 from perception.arenafile import read_arena
 from perception.gaze import GazeController
 from perception.landmarks import LandmarkLocator, read_landmark_map
@@ -124,6 +125,7 @@ class StudentVision:
         self.odometry = None
         self.localiser = None
         self.localisation = None
+        self._teacher_xy = None
         if self.uses_landmarks and wheel_angles is not None:
             calibration = self.calibration
             self.localiser = SelfLocaliser(
@@ -134,6 +136,7 @@ class StudentVision:
                     free_half_side_m=calibration.arena.half_side_m - ROBOT_HALF_WIDTH_M,
                     wall_half_side_m=calibration.arena.half_side_m,
                     footprint_m=ROBOT_FOOTPRINT_M,
+                    obstacle_boxes_m=(calibration.arena.table_box,),
                 ),
             )
             self.localiser.reset(None, wheel_angles=wheel_angles)
@@ -198,7 +201,9 @@ class StudentVision:
             )
         pan, tilt = self._head_angles_deg(observation)
         image = observation["head_camera"]
-        self.localiser.predict_wheels(observation["student_wheel_angles"])
+        # The teacher where it was last tracked: an obstacle the student may push against.
+        movers = () if self._teacher_xy is None else ((*self._teacher_xy, BASE_RADIUS_M),)
+        self.localiser.predict_wheels(observation["student_wheel_angles"], movers)
         # One detection pass for the landmarks and the teacher.
         found = self.localiser.locator.detector.detect_all_corners(image)
         self.localisation = self.localiser.correct(found, pan, tilt)
@@ -212,6 +217,8 @@ class StudentVision:
             if track.track.pose is not None:
                 out["teacher"] = track.track.pose.copy()
         target = None if out["teacher"] is None else out["teacher"][:2]
+        if target is not None:  # kept while the teacher is lost (too near to see, say)
+            self._teacher_xy = (float(target[0]), float(target[1]))
         command = self.gaze.step(self.localisation, target, dt, watching=self.watch_teacher)
         self.head_command = (math.radians(command.pan_deg), math.radians(command.tilt_deg))
         return out

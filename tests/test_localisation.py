@@ -470,3 +470,49 @@ def test_contact_with_a_wall_makes_the_filter_doubt_the_wheels(landmark_map):
     assert not b.contact_
     np.testing.assert_array_equal(a.pose_, b.pose_)
     np.testing.assert_array_equal(a.covariance_, b.covariance_)
+
+
+def test_contact_with_the_table_and_the_other_robot_and_doubt_after_a_rejection(landmark_map):
+    """The footprint near the table's box or the other robot's disc is contact (not a metre
+    away); after a rejected fix the wheels are doubted: a step grows the covariance as in
+    contact, until ``doubt_fixes`` fixes are accepted."""
+    config = LocaliserConfig(
+        wall_half_side_m=2.0,
+        footprint_m=(0.365, 0.2565, 0.2125),
+        obstacle_boxes_m=((-0.5, 0.5, 1.6, 2.0),),
+    )
+    localiser = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS), config=config)
+    localiser.reset((0.0, 1.21, math.pi / 2))  # the paddles 2.5 cm from the table
+    assert localiser.in_contact(0.01, 0.0)
+    localiser.reset((0.0, 0.5, math.pi / 2))
+    assert not localiser.in_contact(0.01, 0.0)
+    localiser.reset((0.0, 0.0, 0.0))
+    assert localiser.in_contact(0.01, 0.0, movers=((0.7, 0.0, 0.33),))
+    assert not localiser.in_contact(0.01, 0.0, movers=((1.0, 0.0, 0.33),))
+    with pytest.raises(ValueError, match="obstacle_boxes_m"):
+        LocaliserConfig(obstacle_boxes_m=((1.0, 0.0, 0.0, 1.0),))
+
+    truth = np.array([0.0, -0.5, math.pi / 2])
+    rng = np.random.default_rng(6)
+    pan, tilt, _ = landmark_view(landmark_map, INTRINSICS, truth, (-10.0, -20.0))
+    found = observe(landmark_map, truth, pan, rng, tilt_deg=tilt)
+    localiser = SelfLocaliser(
+        LandmarkLocator(landmark_map, INTRINSICS), config=LocaliserConfig(doubt_fixes=2)
+    )
+
+    def growth() -> float:
+        before = localiser.covariance_[2, 2]
+        localiser.predict(0.0, 0.1)
+        return localiser.covariance_[2, 2] - before
+
+    localiser.reset(truth + np.array([0.0, 0.0, math.radians(20.0)]), np.diag([1e-6] * 3))
+    plain = growth()
+    estimate = localiser.correct(found, pan, tilt)
+    assert estimate.accepted is False and estimate.doubting
+    assert growth() > 0.1**2 > 10 * plain  # the slip's (0.1 rad)^2 on top
+    localiser.reset(truth, np.diag([1e-4] * 3))
+    localiser.doubt_ = 2
+    for _ in range(2):
+        estimate = localiser.correct(found, pan, tilt)
+        assert estimate.accepted
+    assert not estimate.doubting and growth() == pytest.approx(plain)
