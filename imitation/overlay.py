@@ -172,7 +172,8 @@ def own_pose_estimate(
     """Returns a copy of ``frame`` with the student's own-pose estimate drawn on the floor as
     ``camera`` sees it: a dot at the estimated position, a line along the estimated heading and,
     from ``covariance``, the 95% position ellipse and a wedge spanning the heading's 95% interval
-    (filled translucent), all in ``ESTIMATE_COLOUR``, with a short label.
+    (filled translucent), all in ``ESTIMATE_COLOUR``, with a label giving the ellipse's
+    semi-major axis (cm) and the wedge's half-angle (deg).
 
     Args:
       frame: RGB image, shape (height, width, 3), the size of ``camera``'s image.
@@ -200,7 +201,7 @@ def own_pose_estimate(
             return None
         return np.round(px).astype(np.int32)
 
-    half_angle = 0.0
+    half_angle, label = 0.0, "own pose estimate"
     if covariance is not None:
         cov = np.asarray(covariance, dtype=float)
         if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
@@ -210,6 +211,7 @@ def own_pose_estimate(
         t = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
         ring = (vectors @ (axes[:, None] * np.vstack([np.cos(t), np.sin(t)]))).T + (x, y)
         half_angle = min(_NORMAL_95 * float(np.sqrt(max(cov[2, 2], 0.0))), np.pi)
+        label += f" 95%: {100 * axes[-1]:.1f} cm, {np.degrees(half_angle):.1f} deg"
         arc = yaw + np.linspace(-half_angle, half_angle, 17)
         wedge = np.vstack(
             [(x, y), np.column_stack([x + _WEDGE_M * np.cos(arc), y + _WEDGE_M * np.sin(arc)])]
@@ -227,9 +229,8 @@ def own_pose_estimate(
     if heading is not None:
         cv2.line(out, tuple(heading[0]), tuple(heading[1]), ESTIMATE_COLOUR, thick, cv2.LINE_AA)
         cv2.circle(out, tuple(heading[0]), max(2, int(4 * s)), ESTIMATE_COLOUR, -1, cv2.LINE_AA)
-        label = "own pose estimate" + (", 95%" if covariance is not None else "")
         origin = (int(heading[0][0]) + int(8 * s), int(heading[0][1]) + int(18 * s))
-        size = cv2.getTextSize(label, _FONT, 0.42 * s, 1)[0]
+        size = cv2.getTextSize(label, _FONT, 0.5 * s, 1)[0]
         _shade(out, origin[0] - 2, origin[1] - size[1] - 3, origin[0] + size[0] + 3, origin[1] + 4)
-        _text(out, label, origin, 0.42 * s, ESTIMATE_COLOUR)
+        _text(out, label, origin, 0.5 * s, ESTIMATE_COLOUR)
     return out
