@@ -17,7 +17,7 @@ from absl.testing import absltest
 from dm_control import composer, mjcf
 from dm_env import test_utils
 
-from imitation import performance
+from imitation import observers, performance
 from imitation.streams import StreamGenerator
 from peoplebot_sim import assets, cameras, directives, entities, task
 from peoplebot_sim.rendering import FrameRenderer
@@ -242,6 +242,36 @@ def test_base_radius_holds_the_base_footprint_but_not_the_gripper():
         reach[part] = max(reach[part], planar)
     assert reach["base"] == pytest.approx(entities.BASE_RADIUS_M, abs=1e-9)
     assert reach["gripper"] > entities.BASE_RADIUS_M + 0.02
+
+
+def test_the_landmark_filters_footprint_is_the_models_outline():
+    """``observers.ROBOT_FOOTPRINT_M`` (front, rear, half-width; the contact model's rectangle)
+    is the outline of the PeopleBot's collision geoms at rest, robot frame, but the wheels'
+    spheres, which bulge 5 cm beyond the chassis (the real wheels sit inside it)."""
+    model = mujoco.MjModel.from_xml_path(str(assets.PEOPLEBOT_XML))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    points, wheels = [], {model.geom(name).id for name in ("left_wheel", "right_wheel")}
+    for g in range(model.ngeom):
+        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
+            continue  # visual only
+        centre, size = data.geom_xpos[g], model.geom_size[g]
+        if g in wheels:
+            assert abs(centre[1]) + size[0] == pytest.approx(0.265)
+            continue
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
+            points += [
+                centre[:2] + size[0] * np.array(d) for d in ((1, 0), (-1, 0), (0, 1), (0, -1))
+            ]
+        else:
+            corners = centre + (signs * size) @ data.geom_xmat[g].reshape(3, 3).T
+            points += list(corners[:, :2])
+    points = np.array(points)
+    front, rear, half_width = observers.ROBOT_FOOTPRINT_M
+    assert points[:, 0].max() == pytest.approx(front, abs=1e-9)
+    assert -points[:, 0].min() == pytest.approx(rear, abs=1e-9)
+    assert np.abs(points[:, 1]).max() == pytest.approx(half_width, abs=1e-9)
 
 
 def test_bad_renderer_size_raises_naming_the_value():
