@@ -77,7 +77,13 @@ def _cmd_track_bench(args) -> int:
     from imitation import track_bench
 
     report = track_bench.run(
-        args.samples, args.width, args.height, args.seed, args.out, progress=not args.quiet
+        args.samples,
+        args.width,
+        args.height,
+        args.seed,
+        args.out,
+        progress=not args.quiet,
+        **({} if args.parts is None else {"parts": tuple(args.parts)}),
     )
     print(json.dumps(report, indent=2))
     print(f"written: {args.out}")
@@ -357,6 +363,14 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--seed", type=int, default=0, help="the sampled poses")
     bench.add_argument(
         "--out", type=pathlib.Path, default=RENDERS / "track_bench.json", help="the JSON report"
+    )
+    bench.add_argument(
+        "--parts",
+        nargs="+",
+        default=None,
+        help="which parts run (default all): viewpoints (single frames), sequence (tracking over "
+        "--samples steps, the student standing, with the head's glance cost), self_localisation "
+        "(3 x --samples steps, the student driving)",
     )
     bench.add_argument("--quiet", action="store_true", help="no progress bar")
     bench.set_defaults(func=_cmd_track_bench)

@@ -1,6 +1,7 @@
 """Text and pictures drawn on video frames (RGB): the word, the directive, a title and caption, the
-graded motor output, a note line, an inset picture and the verdict at a trial's end. Sizes scale
-with the frame's width and are legible from 640x480 down to 320x240."""
+graded motor output, a note line, an inset picture, the verdict at a trial's end and the student's
+own-pose estimate with its uncertainty on the floor. Sizes scale with the frame's width and are
+legible from 640x480 down to 320x240."""
 
 from __future__ import annotations
 
@@ -8,11 +9,19 @@ import cv2
 import numpy as np
 
 from associator.encoding import DIRECTIVES
+from perception.camera import PinholeCamera
+from perception.localisation import CHI2_2DOF_95
 
 _WORD_COLOURS = {"go": (60, 170, 75), "pick": (230, 140, 30), "lift": (70, 110, 230)}
 _FONT = cv2.FONT_HERSHEY_SIMPLEX
 #: The motor bars' labels, in the associator's directive order.
 _MOTOR_LABELS = {"forward": "fwd", "backward": "back", "turn_right": "right", "turn_left": "left"}
+#: The own-pose estimate's colour (RGB): magenta, unlike anything in the arena.
+ESTIMATE_COLOUR = (255, 0, 255)
+#: The two-sided normal quantile for 95% (the heading wedge).
+_NORMAL_95 = 1.960
+#: The heading wedge's radius on the floor, metres (about the PeopleBot's length).
+_WEDGE_M = 0.5
 
 
 def _scale(frame: np.ndarray) -> float:
@@ -150,3 +159,78 @@ def _wrap(text: str, size: float, width: int) -> list[str]:
         else:
             line = candidate
     return [*lines, line] if line else lines
+
+
+def own_pose_estimate(
+    frame: np.ndarray,
+    camera: PinholeCamera,
+    pose,
+    covariance=None,
+    *,
+    floor_z_m: float = 0.02,
+) -> np.ndarray:
+    """Returns a copy of ``frame`` with the student's own-pose estimate drawn on the floor as
+    ``camera`` sees it: a dot at the estimated position, a line along the estimated heading and,
+    from ``covariance``, the 95% position ellipse and a wedge spanning the heading's 95% interval
+    (filled translucent), all in ``ESTIMATE_COLOUR``, with a label giving the ellipse's
+    semi-major axis (cm) and the wedge's half-angle (deg).
+
+    Args:
+      frame: RGB image, shape (height, width, 3), the size of ``camera``'s image.
+      camera: the posed camera the frame was rendered from.
+      pose: ``(x_m, y_m, yaw_rad)``, world frame; None or NaN draws nothing.
+      covariance: of ``pose``, shape (3, 3) (m^2, rad^2); None draws the pose alone.
+      floor_z_m: the height the drawing lies at, metres (just above the floor).
+    """
+    out = np.ascontiguousarray(frame).copy()
+    if out.shape[1::-1] != camera.image_size:
+        raise ValueError(
+            f"frame of {out.shape[1]}x{out.shape[0]} pixels, camera of "
+            f"{camera.image_size[0]}x{camera.image_size[1]}: they must agree"
+        )
+    if pose is None or not np.all(np.isfinite(np.asarray(pose, dtype=float))):
+        return out
+    x, y, yaw = (float(v) for v in pose)
+    s = _scale(out)
+    thick = max(1, int(round(2 * s)))
+
+    def pixels(points_xy) -> np.ndarray | None:
+        points = np.column_stack([points_xy, np.full(len(points_xy), floor_z_m)])
+        px = camera.project(points)
+        if not np.all(np.isfinite(px)):
+            return None
+        return np.round(px).astype(np.int32)
+
+    half_angle, label = 0.0, "own pose estimate"
+    if covariance is not None:
+        cov = np.asarray(covariance, dtype=float)
+        if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+            raise ValueError(f"covariance must be a finite 3x3 matrix, got shape {cov.shape}")
+        values, vectors = np.linalg.eigh(cov[:2, :2])
+        axes = np.sqrt(CHI2_2DOF_95 * np.clip(values, 0.0, None))
+        t = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
+        ring = (vectors @ (axes[:, None] * np.vstack([np.cos(t), np.sin(t)]))).T + (x, y)
+        half_angle = min(_NORMAL_95 * float(np.sqrt(max(cov[2, 2], 0.0))), np.pi)
+        label += f" 95%: {100 * axes[-1]:.1f} cm, {np.degrees(half_angle):.1f} deg"
+        arc = yaw + np.linspace(-half_angle, half_angle, 17)
+        wedge = np.vstack(
+            [(x, y), np.column_stack([x + _WEDGE_M * np.cos(arc), y + _WEDGE_M * np.sin(arc)])]
+        )
+        wedge_px = pixels(wedge)
+        if wedge_px is not None:
+            tinted = out.copy()
+            cv2.fillPoly(tinted, [wedge_px], ESTIMATE_COLOUR, cv2.LINE_AA)
+            out[:] = (0.65 * out + 0.35 * tinted).astype(np.uint8)
+            cv2.polylines(out, [wedge_px], True, ESTIMATE_COLOUR, 1, cv2.LINE_AA)
+        ring_px = pixels(ring)
+        if ring_px is not None:
+            cv2.polylines(out, [ring_px], True, ESTIMATE_COLOUR, thick, cv2.LINE_AA)
+    heading = pixels(np.array([(x, y), (x + _WEDGE_M * np.cos(yaw), y + _WEDGE_M * np.sin(yaw))]))
+    if heading is not None:
+        cv2.line(out, tuple(heading[0]), tuple(heading[1]), ESTIMATE_COLOUR, thick, cv2.LINE_AA)
+        cv2.circle(out, tuple(heading[0]), max(2, int(4 * s)), ESTIMATE_COLOUR, -1, cv2.LINE_AA)
+        origin = (int(heading[0][0]) + int(8 * s), int(heading[0][1]) + int(18 * s))
+        size = cv2.getTextSize(label, _FONT, 0.5 * s, 1)[0]
+        _shade(out, origin[0] - 2, origin[1] - size[1] - 3, origin[0] + size[0] + 3, origin[1] + 4)
+        _text(out, label, origin, 0.5 * s, ESTIMATE_COLOUR)
+    return out

@@ -111,6 +111,7 @@ class StudentAgent:
         wheels = None if timestep is None else timestep.observation["student_wheel_angles"]
         self.vision.reset(start_pose, wheels)
         self.directive, self.motor, self.own_pose = None, np.zeros(4), None
+        self.own_covariance = None
         self.time_s = 0.0
 
     def command(self, own_pose) -> tuple[float, float]:
@@ -129,6 +130,9 @@ class StudentAgent:
     def step(self, timestep, dt: float = 0.1) -> np.ndarray:
         """Returns the action for one environment time step."""
         self.own_pose = self.vision.update(timestep.observation, self.time_s, dt)["student"]
+        # The landmark filter's covariance of it ((3, 3), m^2 and rad^2; None in other modes).
+        localisation = getattr(self.vision, "localisation", None)
+        self.own_covariance = None if localisation is None else localisation.covariance
         self.time_s += dt
         return make_action(self.spec, self.command(self.own_pose), self.vision.head_command)
 
@@ -361,6 +365,9 @@ class TrialResult:
     trace: np.ndarray  # (n, 3) true world poses
     estimate: np.ndarray  # (n, 3) the student's own-pose estimates (NaN when unknown)
     directives: list
+    #: (n, 3, 3) the estimates' covariances (m^2, rad^2; NaN when the student has none: the
+    #: truth, overhead and odometry modes, or no pose yet).
+    estimate_covariance: np.ndarray | None = None
 
 
 def run_trial(
@@ -386,7 +393,7 @@ def run_trial(
     agent.reset(timestep, start)
     dt = task.control_timestep
     monitor = SuccessMonitor(row, wall, dt, config, task.geometry, task.config.teacher)
-    trace, estimates, chosen = [], [], []
+    trace, estimates, covariances, chosen = [], [], [], []
     n_steps = int(round(seconds / dt))
     for _ in range(n_steps):
         # The pose the agent acts on (the teacher reads it; a student estimates it).
@@ -396,6 +403,8 @@ def run_trial(
         true_pose = np.asarray(timestep.observation["student_pose"], dtype=float)
         trace.append(true_pose)
         estimates.append(pose_or_nan(getattr(agent, "own_pose", acted_on)))
+        covariance = getattr(agent, "own_covariance", None)
+        covariances.append(np.full((3, 3), np.nan) if covariance is None else covariance)
         chosen.append(agent.directive)
         touching = task.touches_obstacle(env.physics, task.student)
         succeeded = monitor.update(true_pose, touching)
@@ -416,4 +425,5 @@ def run_trial(
         np.asarray(trace),
         np.asarray(estimates),
         chosen,
+        np.asarray(covariances).reshape(-1, 3, 3),
     )

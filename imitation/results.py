@@ -192,8 +192,10 @@ class RecognitionResult:
 class TrialRecord:
     """One performance trial: its row, policy, start (world x m, y m, yaw rad) and the wall its
     success refers to; the verdict, duration, whether the robot touched anything, where it ended,
-    the median error of the student's own-pose estimate (cm; None when it had none) and the
-    verdict's reason in one line."""
+    the median error of the student's own-pose estimate (cm; None when it had none), the
+    verdict's reason in one line, the own-pose error's 95th percentile (cm) and the median of
+    the estimate's 95% position ellipse's semi-major axis (cm; None without a covariance: the
+    landmark filter's only)."""
 
     row: str
     policy: str
@@ -206,6 +208,8 @@ class TrialRecord:
     end_pose: tuple
     own_pose_error_cm_median: float | None
     reason: str
+    own_pose_error_cm_p95: float | None = None
+    own_position_ellipse95_cm_median: float | None = None
 
     def to_json(self) -> dict:
         out = dataclasses.asdict(self)

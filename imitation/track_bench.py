@@ -39,6 +39,15 @@ from perception.pose import wrap_radians
 from perception.wallframe import wrap_degrees
 
 CATEGORIES = ("anywhere", "near_wall", "corner", "docked")
+#: The bench's parts: poses from single frames, tracking over time with the student standing,
+#: self-localisation while it drives.
+PARTS = ("viewpoints", "sequence", "self_localisation")
+#: The sequence part's runs: (viewpoint, how the student knows its own pose; the row's name).
+SEQUENCE_RUNS = (
+    ("overhead", "odometry", "overhead"),
+    ("head", "odometry", "head"),
+    ("head", "landmarks", "head_landmarks"),
+)
 
 
 def _teacher_pose(task: ImitationTask, rng, category: str) -> tuple:
@@ -98,10 +107,35 @@ def run(
     out_path=None,
     progress: bool = True,
     detector_config: DetectorConfig | None = None,
+    parts: tuple[str, ...] = PARTS,
 ) -> dict:
-    """Runs the bench; returns (and writes, if ``out_path``) its figures as a dict."""
+    """Runs the bench's ``parts`` (of ``PARTS``); returns (and writes, if ``out_path``) its
+    figures as a dict."""
     if n_samples <= 0:
         raise ValueError(f"n_samples must be positive, got {n_samples}")
+    unknown = [part for part in parts if part not in PARTS]
+    if unknown or not parts:
+        raise ValueError(f"unknown bench parts {unknown or parts!r}; allowed: {', '.join(PARTS)}")
+    report = {"width": width, "height": height, "samples": n_samples, "seed": seed}
+    if "viewpoints" in parts:
+        report["viewpoints"] = _viewpoints(
+            n_samples, width, height, seed, progress, detector_config
+        )
+    if "sequence" in parts:
+        report["sequence"] = sequence_timing(width, height, seed, n_steps=max(100, n_samples))
+    if "self_localisation" in parts:
+        report["self_localisation"] = self_localisation_run(
+            width, height, seed, n_steps=max(300, 3 * n_samples)
+        )
+    if out_path is not None:
+        out_path = pathlib.Path(out_path)
+        out_path.parent.mkdir(parents=True, exist_ok=True)
+        out_path.write_text(json.dumps(report, indent=2))
+    return report
+
+
+def _viewpoints(n_samples, width, height, seed, progress, detector_config) -> dict:
+    """The single-frame part: per viewpoint, the tracked robots' errors and detection rates."""
     rng = np.random.default_rng(seed)
     task = ImitationTask(TaskConfig(width=width, height=height))
     physics = mjcf.Physics.from_mjcf_model(task.root_entity.mjcf_model)
@@ -193,22 +227,7 @@ def run(
                 "render_and_track_fps": total / (render_s + track_s) if render_s else None,
                 "tracking_share_of_render_time": track_s / render_s if render_s else None,
             }
-    report = {
-        "width": width,
-        "height": height,
-        "samples": n_samples,
-        "seed": seed,
-        "viewpoints": results,
-        "sequence": sequence_timing(width, height, seed, n_steps=max(100, n_samples)),
-        "self_localisation": self_localisation_run(
-            width, height, seed, n_steps=max(300, 3 * n_samples)
-        ),
-    }
-    if out_path is not None:
-        out_path = pathlib.Path(out_path)
-        out_path.parent.mkdir(parents=True, exist_ok=True)
-        out_path.write_text(json.dumps(report, indent=2))
-    return report
+    return results
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -222,6 +241,7 @@ def sequence_timing(
     height: int = 240,
     seed: int = 0,
     n_steps: int = 300,
+    runs: tuple = SEQUENCE_RUNS,
 ) -> dict:
     """Times tracking over time as the experiments use it, per viewpoint: the environment's camera
     observable renders each control step while the teacher loops, and the student's vision
@@ -231,8 +251,10 @@ def sequence_timing(
     (``head_landmarks``, from an unknown start, the head shared between the teacher and the
     landmarks). Returns per viewpoint the steps/s without the camera, with it, and with tracking,
     the render and tracking times per frame, tracking's share of the render time and the tracked
-    teacher's position error; the head viewpoints also the student's own-pose errors (from the
-    first step it has a pose) and ``head_landmarks`` the steps to its first pose and the glances.
+    teacher's position and heading errors; the head viewpoints also the student's own-pose errors
+    (from the first step it has a pose) and ``head_landmarks`` the steps to its first pose and the
+    glances. With both head rows, ``glance_cost`` puts side by side what sharing the head with
+    the landmarks costs the teacher's tracking. ``runs``: which of ``SEQUENCE_RUNS``.
     Tracking is timed around each vision update; rendering is the environment step's time with
     the camera less its time without."""
 
@@ -260,7 +282,12 @@ def sequence_timing(
                 pose, own = poses["teacher"], poses["student"]
                 if pose is not None:
                     truth = timestep.observation["teacher_pose"]
-                    errors.append(100 * math.hypot(pose[0] - truth[0], pose[1] - truth[1]))
+                    errors.append(
+                        (
+                            100 * math.hypot(pose[0] - truth[0], pose[1] - truth[1]),
+                            abs(math.degrees(float(wrap_radians(pose[2] - truth[2])))),
+                        )
+                    )
                 if own is not None:
                     first_pose = i if first_pose is None else first_pose
                     truth = timestep.observation["student_pose"]
@@ -281,12 +308,9 @@ def sequence_timing(
 
     physics_s = run_loop(None, False)[0]
     out = {"steps": n_steps}
-    for view, method in (
-        ("overhead", "odometry"),
-        ("head", "odometry"),
-        ("head", "landmarks"),
-    ):
+    for view, method, name in runs:
         render_s, track_s, errors, own, first_pose, glances = run_loop(view, True, method)
+        errors = np.asarray(errors).reshape(-1, 2)
         render_per_frame = (render_s - physics_s) / n_steps
         track_per_frame = track_s / n_steps
         row = {
@@ -297,7 +321,8 @@ def sequence_timing(
             "tracking_ms_per_frame": 1000 * track_per_frame,
             "tracking_share_of_render_time": track_per_frame / render_per_frame,
             "teacher_seen_fraction": len(errors) / n_steps,
-            "tracked_teacher_position_error_cm": _stats(np.asarray(errors)),
+            "tracked_teacher_position_error_cm": _stats(errors[:, 0]),
+            "tracked_teacher_heading_error_deg": _stats(errors[:, 1]),
         }
         if view == "head":
             row["own_position_error_cm"] = _stats(own[:, 0])
@@ -305,7 +330,18 @@ def sequence_timing(
         if method == "landmarks":
             row["steps_to_first_own_pose"] = first_pose
             row["glances"] = glances
-        out[view if method == "odometry" else "head_landmarks"] = row
+        out[name] = row
+    if "head" in out and "head_landmarks" in out:
+        out["glance_cost"] = {
+            key: {method: out[row][key] for method, row in rows}
+            for key in (
+                "teacher_seen_fraction",
+                "tracked_teacher_position_error_cm",
+                "tracked_teacher_heading_error_deg",
+            )
+            for rows in [(("odometry", "head"), ("landmarks", "head_landmarks"))]
+        }
+        out["glance_cost"]["glances"] = out["head_landmarks"]["glances"]
     return out
 
 

@@ -16,6 +16,7 @@ from imitation.observers import Calibration
 from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
 from peoplebot_sim.task import load
+from perception.localisation import CHI2_2DOF_95
 
 #: Student policies and the network file each drives with (in the run folder).
 STUDENT_NETWORKS = {"student": "network.npz", "student_hierarchical": "hierarchical.npz"}
@@ -156,6 +157,19 @@ def run_planned_trial(config: RunConfig, env, item: PlannedTrial, policy: str, m
     )
 
 
+def ellipse95_semi_major_m(covariances) -> np.ndarray:
+    """Returns the 95% position ellipses' semi-major axes, metres, of the steps with a covariance
+    (``covariances``: (n, 3, 3), NaN where none; None: none at all), shape (k,)."""
+    if covariances is None:
+        return np.zeros(0)
+    covariances = np.asarray(covariances, dtype=float).reshape(-1, 3, 3)
+    known = np.all(np.isfinite(covariances.reshape(-1, 9)), axis=1)
+    if not np.any(known):
+        return np.zeros(0)
+    largest = np.linalg.eigvalsh(covariances[known, :2, :2])[:, -1]
+    return np.sqrt(CHI2_2DOF_95 * np.clip(largest, 0.0, None))
+
+
 def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file: str) -> list:
     models, env, calibration = _worker_setup(config, networks)
     out = []
@@ -169,6 +183,7 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
         truth_then = np.vstack([np.asarray(item.start, dtype=float)[None, :], result.trace[:-1]])
         valid = np.all(np.isfinite(est), axis=1)
         own_error = np.hypot(*(est[valid, :2] - truth_then[valid, :2]).T)
+        ellipse = ellipse95_semi_major_m(result.estimate_covariance)
         out.append(
             TrialRecord(
                 row=item.row,
@@ -184,6 +199,12 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
                 if own_error.size
                 else None,
                 reason=result.reason,
+                own_pose_error_cm_p95=float(np.percentile(own_error, 95) * 100)
+                if own_error.size
+                else None,
+                own_position_ellipse95_cm_median=float(np.median(ellipse) * 100)
+                if ellipse.size
+                else None,
             )
         )
         pathlib.Path(progress_file).write_text(str(k + 1))

@@ -2,7 +2,9 @@
 from the paper's Fig. 4 start, filmed by a camera following the robot from behind and above (with a
 close-up of the table while it docks), and per word a side-by-side video of them all on one time
 base. Each video runs the whole trial at 1 frame per control step, played at ``SPEEDUP`` times real
-time, then holds its last frame for ``HOLD_S`` with the verdict and its reason."""
+time, then holds its last frame for ``HOLD_S`` with the verdict and its reason. In the head mode a
+student's own-pose estimate is drawn on the floor beside the true robot, with the landmark
+filter's 95% position ellipse and heading wedge (``overlay.own_pose_estimate``)."""
 
 from __future__ import annotations
 
@@ -17,10 +19,10 @@ from associator import persistence
 from imitation import performance, storage, trials
 from imitation.config import RunConfig
 from imitation.observers import Calibration
-from imitation.overlay import annotate, inset, verdict
+from imitation.overlay import annotate, inset, own_pose_estimate, verdict
 from imitation.parallel import run_parallel
 from imitation.rosbag import EpisodeRecorder
-from peoplebot_sim.cameras import camera_model
+from peoplebot_sim.cameras import camera_model, free_camera_model
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.viewpoints import FollowCamera, table_closeup
 
@@ -109,7 +111,15 @@ class _Film:
         dt = env.task.control_timestep
         time_s = self.steps * dt
         pose = env.task.student.planar_pose(env.physics)
-        image = self.renderer.render(self.follow.update(pose, dt))
+        view = self.follow.update(pose, dt)
+        image = self.renderer.render(view)
+        if self.config.vision.mode == "head" and self.policy != "teacher":
+            image = own_pose_estimate(
+                image,
+                free_camera_model(env.physics, view, image.shape[1], image.shape[0]),
+                getattr(agent, "own_pose", None),
+                getattr(agent, "own_covariance", None),
+            )
         if np.hypot(pose[0] - self.dock[0], pose[1] - self.dock[1]) <= DOCKING_RANGE_M:
             close = self.inset_renderer.render(self.closeup)
             image = inset(image, close, "table close-up")

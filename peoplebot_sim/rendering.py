@@ -2,9 +2,16 @@
 
 Camera frames for vision render without shadows: on the CPU, shadows cost several times the rest of
 the frame (docs/design.md, "Benchmarks"). Videos may turn them on.
+
+A ``FrameRenderer`` owns its OpenGL context on a thread of its own. On the caller's thread it would
+make its context current behind ``dm_control``'s back, which believes its own still is (it keeps
+track per thread) and then renders the environment's camera observables into nothing: a head-mode
+student filmed for a video saw black frames and never localised itself.
 """
 
 from __future__ import annotations
+
+import concurrent.futures
 
 import mujoco
 import numpy as np
@@ -41,15 +48,21 @@ class FrameRenderer:
         if not (isinstance(height, (int, np.integer)) and 1 <= height <= max_h):
             raise ValueError(f"height must be an integer in [1, {max_h}] pixels, got {height!r}")
         self._physics = physics
-        samples, size = model.vis.quality.offsamples, model.vis.quality.shadowsize
-        if antialias:
-            model.vis.quality.offsamples = 4
-        if shadow_size is not None:
-            model.vis.quality.shadowsize = int(shadow_size)
-        try:
-            self._renderer = mujoco.Renderer(model, height, width)
-        finally:
-            model.vis.quality.offsamples, model.vis.quality.shadowsize = samples, size
+        self._renderer = None
+        self._thread = concurrent.futures.ThreadPoolExecutor(1, thread_name_prefix="renderer")
+
+        def make() -> mujoco.Renderer:
+            samples, size = model.vis.quality.offsamples, model.vis.quality.shadowsize
+            if antialias:
+                model.vis.quality.offsamples = 4
+            if shadow_size is not None:
+                model.vis.quality.shadowsize = int(shadow_size)
+            try:
+                return mujoco.Renderer(model, height, width)
+            finally:
+                model.vis.quality.offsamples, model.vis.quality.shadowsize = samples, size
+
+        self._renderer = self._thread.submit(make).result()
         self._shadows = bool(shadows)
         self.width, self.height = int(width), int(height)
 
@@ -66,14 +79,19 @@ class FrameRenderer:
         ``mujoco.MjvCamera`` such as ``peoplebot_sim.viewpoints``') at the current state."""
         if not isinstance(camera, mujoco.MjvCamera):
             camera = self._camera_id(camera)
-        self._renderer.update_scene(self._physics.data.ptr, camera)
-        self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self._shadows
-        return self._renderer.render(out=out)
+
+        def render() -> np.ndarray:
+            self._renderer.update_scene(self._physics.data.ptr, camera)
+            self._renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self._shadows
+            return self._renderer.render(out=out)
+
+        return self._thread.submit(render).result()
 
     def close(self) -> None:
         if self._renderer is not None:
-            self._renderer.close()
+            self._thread.submit(self._renderer.close).result()
             self._renderer = None
+        self._thread.shutdown()
 
     def __enter__(self):
         return self

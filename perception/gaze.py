@@ -9,12 +9,14 @@ The policy (:class:`GazeController`), once per control step:
    show the most of them from the estimated pose (:func:`perception.landmarks.landmark_view`),
    chosen again every ``relook_steps``.
 3. Watching: follow the teacher while the own position's largest standard deviation is at most
-   ``glance_sigma_m`` and the last landmark fix was not rejected; otherwise glance at the
-   landmarks until a fix is accepted with the deviation below ``glance_sigma_m / 2``, or
+   ``glance_sigma_m``, the heading's at most ``glance_sigma_deg`` and the last landmark fix was not
+   rejected; otherwise glance at the landmarks until a fix is accepted with both deviations below
+   half their thresholds, or
    ``glance_max_steps`` have passed, then back to the teacher. A lost teacher is searched for with
    the sweep of 1 (which passes the landmarks too).
 4. Looking at landmarks with no fix accepted for ``sweep_after_steps`` (the estimate may be so
-   wrong that the chosen pan shows none): sweep the pan until a fix is accepted.
+   wrong that the chosen pan shows none): sweep the pan until a fix is accepted (watching: for at
+   most ``sweep_max_steps``; pressed against a wall, only the pan's far ends may show a landmark).
 
 What a glance costs the teacher's tracking is measured by ``peoplebot track-bench``
 (docs/perception.md, "Self-localisation").
@@ -42,24 +44,31 @@ class GazeConfig:
     Attributes:
       glance_sigma_m: glance when the own position's largest standard deviation exceeds this,
         metres.
+      glance_sigma_deg: glance when the heading's standard deviation exceeds this, degrees (a
+        turn in place against a wall grows it, not the position's).
       glance_max_steps: the longest glance, control steps.
       relook_steps: the landmark view is chosen again after this many steps, control steps.
       tilts_deg: the head's tilts for landmarks, degrees (negative looks down).
       sweep_pan_deg: a sweep's pan amplitude, degrees.
       sweep_after_steps: looking at landmarks with no fix accepted for this many steps, sweep.
+      sweep_max_steps: the longest sweep within a glance, control steps.
     """
 
     glance_sigma_m: float = 0.03
+    glance_sigma_deg: float = 3.0
     glance_max_steps: int = 10
     relook_steps: int = 5
     tilts_deg: tuple[float, ...] = (-10.0, -20.0, -30.0)
-    sweep_pan_deg: float = 85.0
+    sweep_pan_deg: float = 98.0
     sweep_after_steps: int = 6
+    sweep_max_steps: int = 30
 
     def __post_init__(self):
         if not (math.isfinite(self.glance_sigma_m) and self.glance_sigma_m > 0):
             raise ValueError(f"glance_sigma_m must be > 0 metres, got {self.glance_sigma_m!r}")
-        for name in ("glance_max_steps", "relook_steps", "sweep_after_steps"):
+        if not (math.isfinite(self.glance_sigma_deg) and self.glance_sigma_deg > 0):
+            raise ValueError(f"glance_sigma_deg must be > 0 degrees, got {self.glance_sigma_deg!r}")
+        for name in ("glance_max_steps", "relook_steps", "sweep_after_steps", "sweep_max_steps"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -118,13 +127,20 @@ class GazeController:
             self.target_, self._view = "search", None
             return self._sweep(dt_s)
         self._no_fix_steps = 0 if estimate.accepted else self._no_fix_steps + 1
-        sigma = estimate.position_sigma_m
-        doubtful = sigma > c.glance_sigma_m or estimate.rejections > 0
+        sigma, sigma_deg = estimate.position_sigma_m, estimate.heading_sigma_deg
+        doubtful = (
+            sigma > c.glance_sigma_m or sigma_deg > c.glance_sigma_deg or estimate.rejections > 0
+        )
         if watching:
             if self.target_ in ("landmarks", "sweep"):
                 self._glance_steps += 1
-                settled = estimate.accepted and sigma <= 0.5 * c.glance_sigma_m
-                if settled or self._glance_steps > c.glance_max_steps:
+                settled = (
+                    estimate.accepted
+                    and sigma <= 0.5 * c.glance_sigma_m
+                    and sigma_deg <= 0.5 * c.glance_sigma_deg
+                )
+                longest = c.sweep_max_steps if self.target_ == "sweep" else c.glance_max_steps
+                if settled or self._glance_steps > longest:
                     self.target_ = "teacher"
             elif doubtful:
                 self.target_, self._glance_steps, self._view = "landmarks", 0, None
@@ -137,6 +153,8 @@ class GazeController:
                     return self._sweep(dt_s)
                 return self.controller.step(estimate.pose, teacher_xy, dt_s)
         if self._no_fix_steps >= c.sweep_after_steps:
+            if self.target_ != "sweep":  # a glance that turns into a sweep gets its full length
+                self._glance_steps = 0
             self.target_, self._view = "sweep", None
             return self._sweep(dt_s)
         self.target_ = "landmarks"

@@ -13,6 +13,22 @@ Their errors are independent, zero-mean, with variances growing with the motion 
 
 propagated through the motion's Jacobians (``P <- F P F^T + G Q G^T``).
 
+Contact (with ``wall_half_side_m`` and ``footprint_m``): when a step ends with the robot's
+footprint, at the estimated pose, within ``contact_margin_m`` of a wall (a corner), of a fixed
+obstacle in ``obstacle_boxes_m`` (the table) or of a moving one the caller names (a disc: the
+other robot where it was last tracked), the robot is taken to be touching it: the encoders count
+what the wheels turned, but the base may have moved anything from none of it to all of it
+(pushing on, the wheels slip; turning in place, a corner rubbing on the wall may hold it). The
+step's distance is then applied scaled by ``contact_distance_scale`` and its turn by
+``contact_turn_scale``, and both get the extra standard deviation ``contact_slip_sigma`` times
+the measured step, so the covariance grows with every slipping step instead of staying
+confident while blind.
+
+Doubt: a rejected fix shows that the wheels may have lied (a push by the other robot, a slip the
+contact model did not foresee); until ``doubt_fixes`` fixes have been accepted after it every
+step gets the slip's extra noise (unscaled), so that a robot still being pushed is followed by
+its fixes instead of re-initialised again and again.
+
 Measurement model: a :class:`~perception.landmarks.LandmarkFix`, the pose fitted to every visible
 landmark's corners at once, with the fit's covariance (corner noise ``corner_sigma_px``) plus a
 floor ``fix_floor_sigma`` for what the corner noise does not cover (the head's calibration, the
@@ -42,6 +58,9 @@ from perception.odometry import DriveGeometry
 from perception.pose import check_planar_pose, wrap_radians
 
 LOCALISATION_STATUSES = ("searching", "tracking")
+#: The 95% point of chi-square with 2 degrees of freedom: the 95% position ellipse is
+#: ``d^T P_xy^-1 d <= CHI2_2DOF_95``.
+CHI2_2DOF_95 = 5.991
 
 
 @dataclasses.dataclass(frozen=True)
@@ -65,6 +84,21 @@ class LocaliserConfig:
       single_init_after_steps: searching this many steps without a fix from two landmarks, one
         landmark may initialise the filter (its flip is resolved by the level robot: on synthetic
         corners the error is 2.8 cm median, 20 cm p95, docs/perception.md).
+      wall_half_side_m: the walls' inner faces, metres from the arena's centre along x and y (a
+        square arena centred on the world origin); with ``footprint_m`` it turns on the contact
+        model (module docstring). None: no contact model.
+      footprint_m: the robot's outline around its frame's origin, metres: ``(front, rear,
+        half_width)`` (a rectangle, robot frame, x forward).
+      obstacle_boxes_m: fixed obstacles, ``(x_min, x_max, y_min, y_max)`` world metres each
+        (axis-aligned boxes: the table).
+      contact_margin_m: the footprint this close to a wall or an obstacle is in contact, metres.
+      contact_distance_scale, contact_turn_scale: the shares of a step's distance and turn in
+        contact that are applied to the state (measured in the simulator: the base moves a median
+        3-22% of the encoders' distance and turns a median 100% of their turn,
+        docs/perception.md).
+      contact_slip_sigma: the extra standard deviation of a step in contact, as a share of it.
+      doubt_fixes: after a rejected fix, the steps carry the slip's noise until this many fixes
+        have been accepted (0: never).
       free_half_side_m: where the robot frame's origin can be: within this of the arena's centre
         along x and y (a square arena centred on the world origin, less the robot's half-width);
         an estimate outside is moved back to the edge (wheels slipping against a wall drive the
@@ -82,6 +116,14 @@ class LocaliserConfig:
     init_inflation: float = 4.0
     reject_inflation: float = 2.0
     single_init_after_steps: int = 30
+    wall_half_side_m: float | None = None
+    footprint_m: tuple[float, float, float] | None = None
+    obstacle_boxes_m: tuple[tuple[float, float, float, float], ...] = ()
+    contact_margin_m: float = 0.03
+    contact_distance_scale: float = 0.25
+    contact_turn_scale: float = 1.0
+    contact_slip_sigma: float = 1.0
+    doubt_fixes: int = 5
     free_half_side_m: float | None = None
 
     def __post_init__(self):
@@ -90,7 +132,30 @@ class LocaliserConfig:
             values = value if isinstance(value, tuple) else (value,)
             if field.name == "fix_floor_sigma" and len(values) != 3:
                 raise ValueError(f"fix_floor_sigma must be 3 numbers (m, m, rad), got {value!r}")
-            if field.name == "free_half_side_m" and value is None:
+            if field.name == "footprint_m" and value is not None and len(values) != 3:
+                raise ValueError(
+                    f"footprint_m must be 3 numbers (front, rear, half_width) in metres, got {value!r}"
+                )
+            if field.name in ("free_half_side_m", "wall_half_side_m", "footprint_m") and (
+                value is None
+            ):
+                continue
+            if field.name == "obstacle_boxes_m":
+                for box in value:
+                    box = tuple(box)
+                    if (
+                        len(box) != 4
+                        or not all(math.isfinite(v) for v in box)
+                        or not (box[0] < box[1] and box[2] < box[3])
+                    ):
+                        raise ValueError(
+                            "obstacle_boxes_m must hold (x_min, x_max, y_min, y_max) boxes in "
+                            f"metres, min < max, got {box!r}"
+                        )
+                continue
+            if field.name == "doubt_fixes":
+                if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                    raise ValueError(f"doubt_fixes must be an integer >= 0, got {value!r}")
                 continue
             if field.name in ("reinit_after", "single_init_after_steps"):
                 if isinstance(value, bool) or not isinstance(value, int) or value < 1:
@@ -105,6 +170,8 @@ class LocaliserConfig:
                     )
                 if field.name == "reject_inflation" and v < 1:
                     raise ValueError(f"reject_inflation must be >= 1, got {value!r}")
+                if field.name.startswith("contact_") and field.name.endswith("_scale") and v > 1:
+                    raise ValueError(f"{field.name} must be in [0, 1], got {value!r}")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -123,6 +190,9 @@ class LocalisationEstimate:
       rejections: fixes rejected in a row so far (a sign the pose may be wrong).
       steps_since_fix: control steps since the last accepted fix (0 this step; counted from the
         start while searching).
+      contact: the last odometry step was taken as slipping against a wall or an obstacle (the
+        contact model).
+      doubting: the wheels are doubted since a rejected fix (the module docstring).
     """
 
     pose: np.ndarray | None
@@ -134,6 +204,8 @@ class LocalisationEstimate:
     reinitialised: bool = False
     rejections: int = 0
     steps_since_fix: int = 0
+    contact: bool = False
+    doubting: bool = False
 
     @property
     def marker_ids(self) -> tuple[int, ...]:
@@ -146,6 +218,13 @@ class LocalisationEstimate:
         if self.covariance is None:
             return math.inf
         return float(math.sqrt(max(np.linalg.eigvalsh(self.covariance[:2, :2])[-1], 0.0)))
+
+    @property
+    def heading_sigma_deg(self) -> float:
+        """Returns the heading's standard deviation, degrees (infinite while searching)."""
+        if self.covariance is None:
+            return math.inf
+        return math.degrees(math.sqrt(max(float(self.covariance[2, 2]), 0.0)))
 
 
 class SelfLocaliser:
@@ -188,6 +267,8 @@ class SelfLocaliser:
             self.covariance_ = covariance
         self.rejections_ = 0
         self.steps_since_fix_ = 0
+        self.contact_ = False
+        self.doubt_ = 0
         self._wheels = None
         if wheel_angles is not None:
             self._wheels = self._check_wheels(wheel_angles)
@@ -208,6 +289,8 @@ class SelfLocaliser:
             **record,
             rejections=self.rejections_,
             steps_since_fix=self.steps_since_fix_,
+            contact=self.contact_,
+            doubting=self.doubt_ > 0,
         )
 
     @staticmethod
@@ -219,18 +302,22 @@ class SelfLocaliser:
             )
         return float(values[0]), float(values[1])
 
-    def predict_wheels(self, wheel_angles) -> None:
-        """Advances the state with the encoders' new readings ``(left, right)``, radians."""
+    def predict_wheels(self, wheel_angles, movers=()) -> None:
+        """Advances the state with the encoders' new readings ``(left, right)``, radians
+        (``movers``: as :meth:`predict`)."""
         left, right = self._check_wheels(wheel_angles)
         if self._wheels is not None:
             r = self.geometry.wheel_radius_m
             d_left, d_right = (left - self._wheels[0]) * r, (right - self._wheels[1]) * r
-            self.predict((d_left + d_right) / 2.0, (d_right - d_left) / self.geometry.track_m)
+            self.predict(
+                (d_left + d_right) / 2.0, (d_right - d_left) / self.geometry.track_m, movers
+            )
         self._wheels = (left, right)
 
-    def predict(self, distance_m: float, turn_rad: float) -> None:
+    def predict(self, distance_m: float, turn_rad: float, movers=()) -> None:
         """Advances the state by one odometry step: ``distance_m`` along the mean heading, then
-        ``turn_rad`` in all (the motion model in the module docstring)."""
+        ``turn_rad`` in all (the motion model in the module docstring). ``movers``: moving
+        obstacles now, discs ``(x_m, y_m, radius_m)`` in the world frame (the other robot)."""
         if not (math.isfinite(distance_m) and math.isfinite(turn_rad)):
             raise ValueError(
                 f"distance_m and turn_rad must be finite, got {distance_m}, {turn_rad}"
@@ -238,6 +325,13 @@ class SelfLocaliser:
         if self.pose_ is None:
             return
         c = self.config
+        self.contact_ = self.in_contact(distance_m, turn_rad, movers)
+        # The slip's variances, from the measured step (zero out of contact and doubt).
+        slip = c.contact_slip_sigma if self.contact_ or self.doubt_ > 0 else 0.0
+        slip_q = np.diag([(slip * distance_m) ** 2, (slip * turn_rad) ** 2])
+        if self.contact_:
+            distance_m *= c.contact_distance_scale
+            turn_rad *= c.contact_turn_scale
         heading = self.pose_[2] + 0.5 * turn_rad
         half = 0.5 * turn_rad
         chord = distance_m * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
@@ -252,6 +346,7 @@ class SelfLocaliser:
                 + c.floor_turn_rad**2,
             ]
         )
+        q = q + slip_q
         self.pose_ = self.pose_ + np.array([chord * cos_h, chord * sin_h, turn_rad])
         self.pose_[2] = float(wrap_radians(self.pose_[2]))
         if c.free_half_side_m is not None:  # the state constraint: projected back inside
@@ -259,6 +354,63 @@ class SelfLocaliser:
             self.pose_[:2] = np.clip(self.pose_[:2], -limit, limit)
         covariance = f @ self.covariance_ @ f.T + g @ q @ g.T
         self.covariance_ = 0.5 * (covariance + covariance.T)
+
+    def footprint_corners(self, pose) -> np.ndarray:
+        """Returns the footprint's corners at ``pose`` (x_m, y_m, yaw_rad), world metres, shape
+        (4, 2) (``config.footprint_m`` must be set)."""
+        front, rear, half_width = self.config.footprint_m
+        local = np.array(
+            [[front, half_width], [front, -half_width], [-rear, -half_width], [-rear, half_width]]
+        )
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        return local @ np.array([[c, s], [-s, c]]) + np.asarray(pose[:2], dtype=float)
+
+    def in_contact(self, distance_m: float, turn_rad: float, movers=()) -> bool:
+        """Returns True when the step ``(distance_m, turn_rad)`` from the estimated pose ends with
+        the footprint within ``contact_margin_m`` of a wall, an obstacle box or one of ``movers``
+        (discs ``(x_m, y_m, radius_m)``, world frame); False without the contact model, a pose
+        or a motion."""
+        c = self.config
+        if self.pose_ is None or c.wall_half_side_m is None or c.footprint_m is None:
+            return False
+        if distance_m == 0.0 and turn_rad == 0.0:
+            return False
+        half = 0.5 * turn_rad
+        chord = distance_m * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
+        heading = self.pose_[2] + half
+        after = self.pose_ + np.array(
+            [chord * math.cos(heading), chord * math.sin(heading), turn_rad]
+        )
+        corners = self.footprint_corners(after)
+        margin = c.contact_margin_m
+        if np.max(np.abs(corners)) > c.wall_half_side_m - margin:
+            return True
+        front, rear, half_width = c.footprint_m
+        cos_h, sin_h = math.cos(after[2]), math.sin(after[2])
+
+        def footprint_distance(points_xy) -> np.ndarray:
+            """Distances of world points to the footprint rectangle (0 inside), metres."""
+            d = np.atleast_2d(np.asarray(points_xy, dtype=float)) - after[:2]
+            along, across = d[:, 0] * cos_h + d[:, 1] * sin_h, -d[:, 0] * sin_h + d[:, 1] * cos_h
+            outside_x = np.maximum(np.maximum(along - front, -rear - along), 0.0)
+            outside_y = np.maximum(np.abs(across) - half_width, 0.0)
+            return np.hypot(outside_x, outside_y)
+
+        for x0, x1, y0, y1 in c.obstacle_boxes_m:
+            inside = (
+                (corners[:, 0] > x0 - margin)
+                & (corners[:, 0] < x1 + margin)
+                & (corners[:, 1] > y0 - margin)
+                & (corners[:, 1] < y1 + margin)
+            )
+            box_corners = ((x0, y0), (x0, y1), (x1, y0), (x1, y1))
+            if np.any(inside) or np.any(footprint_distance(box_corners) < margin):
+                return True
+        for mover in movers:
+            x, y, radius = (float(v) for v in mover)
+            if footprint_distance((x, y))[0] < radius + margin:
+                return True
+        return False
 
     def fix_covariance(self, fix: LandmarkFix) -> np.ndarray:
         """Returns the measurement covariance R of a fix: its fit's covariance plus the floor."""
@@ -291,6 +443,7 @@ class SelfLocaliser:
         nis = float(innovation @ np.linalg.solve(s, innovation))
         if not nis <= self.config.gate_nis:
             self.rejections_ += 1
+            self.doubt_ = self.config.doubt_fixes
             # Fading memory: a rejected fix is evidence that the odometry slipped (a collision, a
             # push), so the state is trusted less and a run of consistent fixes gets through.
             self.covariance_ = self.covariance_ * self.config.reject_inflation
@@ -302,6 +455,7 @@ class SelfLocaliser:
                 return self._initialise(fix if fresh is None else fresh, nis, min_markers=1)
             return self.estimate(fix=fix, accepted=False, nis=nis)
         self.rejections_ = 0
+        self.doubt_ = max(self.doubt_ - 1, 0)
         gain = self.covariance_ @ np.linalg.inv(s)
         self.pose_ = self.pose_ + gain @ innovation
         self.pose_[2] = float(wrap_radians(self.pose_[2]))

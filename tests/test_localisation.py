@@ -367,13 +367,19 @@ def test_gaze_shares_the_head_between_teacher_and_landmarks(landmark_map):
     the teacher until the own position's sigma passes the glance threshold (or a fix is rejected),
     glances at the landmarks, and comes back when a fix has shrunk it (or after the longest
     glance); a glance with no fix turns into a sweep."""
-    config = GazeConfig(glance_sigma_m=0.03, glance_max_steps=4, sweep_after_steps=3)
+    config = GazeConfig(
+        glance_sigma_m=0.03,
+        glance_sigma_deg=3.0,
+        glance_max_steps=4,
+        sweep_after_steps=3,
+        sweep_max_steps=2,
+    )
     gaze = GazeController(landmark_map, INTRINSICS, config)
     pose = np.array([0.0, -1.0, math.pi / 2])  # facing the table, the top wall 3 m ahead
     teacher = (0.0, 0.5)
 
-    def estimate(sigma_m, accepted=True, rejections=0):
-        covariance = np.diag([sigma_m**2, sigma_m**2, 1e-4])
+    def estimate(sigma_m, accepted=True, rejections=0, sigma_deg=0.5):
+        covariance = np.diag([sigma_m**2, sigma_m**2, math.radians(sigma_deg) ** 2])
         return LocalisationEstimate(
             pose, covariance, "tracking", accepted=accepted, rejections=rejections
         )
@@ -396,8 +402,10 @@ def test_gaze_shares_the_head_between_teacher_and_landmarks(landmark_map):
     gaze.step(estimate(0.01, accepted=False, rejections=1), teacher, 0.1)
     assert gaze.target_ == "landmarks" and gaze.glances_ == 2
     targets = [gaze.step(estimate(0.05, None), teacher, 0.1) and gaze.target_ for _ in range(6)]
-    assert targets[:2] == ["landmarks"] * 2 and targets[2:4] == ["sweep"] * 2
-    assert "teacher" in targets[4:]
+    assert targets[:2] == ["landmarks"] * 2 and targets[2:5] == ["sweep"] * 3
+    assert targets[5] == "teacher"
+    gaze.step(estimate(0.01, sigma_deg=5.0), teacher, 0.1)  # the heading alone is doubtful
+    assert gaze.target_ == "landmarks" and gaze.glances_ == 3
 
 
 def test_estimate_is_held_inside_the_arena_and_one_landmark_initialises_in_the_end(landmark_map):
@@ -418,3 +426,93 @@ def test_estimate_is_held_inside_the_arena_and_one_landmark_initialises_in_the_e
     assert states[:3] == ["searching"] * 3 and states[-1] == "tracking"
     position, heading = pose_error(localiser.pose_, truth)
     assert position < 0.1 and heading < 2.0
+
+
+def test_contact_with_a_wall_makes_the_filter_doubt_the_wheels(landmark_map):
+    """Pushing into a wall, the encoders count 3.5 cm a step while the base stays put: with the
+    contact model (the footprint at the estimated pose touches the wall) the covariance grows
+    with the slip and the true pose's fix passes the gate; without it the filter stays confident
+    and rejects it. Out of contact, the model changes nothing."""
+    start = np.array([1.6, 0.0, 0.0])  # facing the +x wall at 2 m: the paddles 3.5 cm from it
+    plain = LocaliserConfig()
+    contact = LocaliserConfig(wall_half_side_m=2.0, footprint_m=(0.365, 0.2565, 0.2125))
+    rng = np.random.default_rng(4)
+    pan, tilt, _ = landmark_view(landmark_map, INTRINSICS, start, (-10.0, -20.0))
+    found = observe(landmark_map, start, pan, rng, tilt_deg=tilt)
+    assert len(found) >= 2
+    outcomes = {}
+    for name, config in (("plain", plain), ("contact", contact)):
+        localiser = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS), config=config)
+        localiser.reset(start, np.diag([1e-4, 1e-4, 1e-5]))
+        for _ in range(10):  # 1 s pushing: 35 cm counted, none moved
+            localiser.predict(0.035, 0.0)
+        sigma = math.sqrt(localiser.covariance_[0, 0])
+        outcomes[name] = (sigma, localiser.correct(found, pan, tilt))
+    sigma, estimate = outcomes["plain"]
+    assert not estimate.contact and estimate.accepted is False and sigma < 0.03
+    sigma, estimate = outcomes["contact"]
+    assert estimate.contact and estimate.accepted and sigma > 0.05
+    position, _ = pose_error(estimate.pose, start)
+    assert position < 0.03
+    # Turning in place against the wall, stuck: the heading's sigma grows with the turn.
+    localiser = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS), config=contact)
+    localiser.reset(start, np.diag([1e-4, 1e-4, 1e-5]))
+    for _ in range(5):
+        localiser.predict(0.0, math.radians(6.0))
+    assert localiser.contact_ and math.degrees(math.sqrt(localiser.covariance_[2, 2])) > 10.0
+    # In the middle of the arena the two configurations agree exactly.
+    a = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS), config=plain)
+    b = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS), config=contact)
+    for localiser in (a, b):
+        localiser.reset((0.0, -0.5, 0.3))
+        for _ in range(10):
+            localiser.predict(0.035, 0.02)
+    assert not b.contact_
+    np.testing.assert_array_equal(a.pose_, b.pose_)
+    np.testing.assert_array_equal(a.covariance_, b.covariance_)
+
+
+def test_contact_with_the_table_and_the_other_robot_and_doubt_after_a_rejection(landmark_map):
+    """The footprint near the table's box or the other robot's disc is contact (not a metre
+    away); after a rejected fix the wheels are doubted: a step grows the covariance as in
+    contact, until ``doubt_fixes`` fixes are accepted."""
+    config = LocaliserConfig(
+        wall_half_side_m=2.0,
+        footprint_m=(0.365, 0.2565, 0.2125),
+        obstacle_boxes_m=((-0.5, 0.5, 1.6, 2.0),),
+    )
+    localiser = SelfLocaliser(LandmarkLocator(landmark_map, INTRINSICS), config=config)
+    localiser.reset((0.0, 1.21, math.pi / 2))  # the paddles 2.5 cm from the table
+    assert localiser.in_contact(0.01, 0.0)
+    localiser.reset((0.0, 0.5, math.pi / 2))
+    assert not localiser.in_contact(0.01, 0.0)
+    localiser.reset((0.0, 0.0, 0.0))
+    assert localiser.in_contact(0.01, 0.0, movers=((0.7, 0.0, 0.33),))
+    assert not localiser.in_contact(0.01, 0.0, movers=((1.0, 0.0, 0.33),))
+    with pytest.raises(ValueError, match="obstacle_boxes_m"):
+        LocaliserConfig(obstacle_boxes_m=((1.0, 0.0, 0.0, 1.0),))
+
+    truth = np.array([0.0, -0.5, math.pi / 2])
+    rng = np.random.default_rng(6)
+    pan, tilt, _ = landmark_view(landmark_map, INTRINSICS, truth, (-10.0, -20.0))
+    found = observe(landmark_map, truth, pan, rng, tilt_deg=tilt)
+    localiser = SelfLocaliser(
+        LandmarkLocator(landmark_map, INTRINSICS), config=LocaliserConfig(doubt_fixes=2)
+    )
+
+    def growth() -> float:
+        before = localiser.covariance_[2, 2]
+        localiser.predict(0.0, 0.1)
+        return localiser.covariance_[2, 2] - before
+
+    localiser.reset(truth + np.array([0.0, 0.0, math.radians(20.0)]), np.diag([1e-6] * 3))
+    plain = growth()
+    estimate = localiser.correct(found, pan, tilt)
+    assert estimate.accepted is False and estimate.doubting
+    assert growth() > 0.1**2 > 10 * plain  # the slip's (0.1 rad)^2 on top
+    localiser.reset(truth, np.diag([1e-4] * 3))
+    localiser.doubt_ = 2
+    for _ in range(2):
+        estimate = localiser.correct(found, pan, tilt)
+        assert estimate.accepted
+    assert not estimate.doubting and growth() == pytest.approx(plain)

@@ -17,7 +17,7 @@ from absl.testing import absltest
 from dm_control import composer, mjcf
 from dm_env import test_utils
 
-from imitation import performance
+from imitation import observers, performance
 from imitation.streams import StreamGenerator
 from peoplebot_sim import assets, cameras, directives, entities, task
 from peoplebot_sim.rendering import FrameRenderer
@@ -244,11 +244,58 @@ def test_base_radius_holds_the_base_footprint_but_not_the_gripper():
     assert reach["gripper"] > entities.BASE_RADIUS_M + 0.02
 
 
+def test_the_landmark_filters_footprint_is_the_models_outline():
+    """``observers.ROBOT_FOOTPRINT_M`` (front, rear, half-width; the contact model's rectangle)
+    is the outline of the PeopleBot's collision geoms at rest, robot frame, but the wheels'
+    spheres, which bulge 5 cm beyond the chassis (the real wheels sit inside it)."""
+    model = mujoco.MjModel.from_xml_path(str(assets.PEOPLEBOT_XML))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    points, wheels = [], {model.geom(name).id for name in ("left_wheel", "right_wheel")}
+    for g in range(model.ngeom):
+        if model.geom_contype[g] == 0 and model.geom_conaffinity[g] == 0:
+            continue  # visual only
+        centre, size = data.geom_xpos[g], model.geom_size[g]
+        if g in wheels:
+            assert abs(centre[1]) + size[0] == pytest.approx(0.265)
+            continue
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE:
+            points += [
+                centre[:2] + size[0] * np.array(d) for d in ((1, 0), (-1, 0), (0, 1), (0, -1))
+            ]
+        else:
+            corners = centre + (signs * size) @ data.geom_xmat[g].reshape(3, 3).T
+            points += list(corners[:, :2])
+    points = np.array(points)
+    front, rear, half_width = observers.ROBOT_FOOTPRINT_M
+    assert points[:, 0].max() == pytest.approx(front, abs=1e-9)
+    assert -points[:, 0].min() == pytest.approx(rear, abs=1e-9)
+    assert np.abs(points[:, 1]).max() == pytest.approx(half_width, abs=1e-9)
+
+
 def test_bad_renderer_size_raises_naming_the_value():
     physics = mjcf.Physics.from_mjcf_model(task.ImitationTask().root_entity.mjcf_model)
     for size in ({"width": -5}, {"height": 0}):
         with pytest.raises(ValueError, match=str(next(iter(size.values())))):
             FrameRenderer(physics, **size)
+
+
+def test_a_frame_renderer_leaves_the_camera_observables_seeing():
+    """A video's renderer on the environment's physics (its own OpenGL context) must not blind the
+    environment's camera observables (dm_control's context): the head camera still sees the
+    arena after the renderer is made and used, frame for frame as before."""
+    env = task.load(seed=0, cameras=("head",), width=64, height=48)
+    try:
+        still = np.zeros(env.action_spec().shape)
+        env.reset()
+        before = env.step(still).observation["head_camera"].astype(float)
+        with FrameRenderer(env.physics, 64, 48, antialias=True) as renderer:
+            assert renderer.render("overhead").mean() > 20
+            after = env.step(still).observation["head_camera"].astype(float)
+            assert after.mean() > 20 and np.abs(after - before).mean() < 5
+    finally:
+        env.close()
 
 
 @pytest.fixture(scope="module")
