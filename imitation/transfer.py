@@ -7,7 +7,9 @@ trial settings and the perturbations of the level) whose two stages, ``recogniti
 the teacher, as the camera modes do, or the recorded test stream in the 'truth' mode) and
 ``performance`` (every student and the teacher's controller from the run's random starts), are
 checkpointed in its ``state.json``: an interrupted transfer resumes, and a finished cell is kept.
-The networks and the test stream are read from the source run, never copied. The report:
+The networks and the test stream are read from the source run, never copied. The cells run as Ray
+tasks (``imitation.raytasks``, the scheduler of ``peoplebot sweep``): a local Ray by default, or a
+cluster whose nodes see the source run and the transfer's folder at the same paths. The report:
 ``transfer.json``, ``transfer.md`` and ``figures/<family>.png``.
 """
 
@@ -23,7 +25,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from associator import encoding, persistence  # noqa: E402
-from imitation import perturbations, recognition, storage, trials  # noqa: E402
+from imitation import perturbations, raytasks, recognition, storage, trials  # noqa: E402
 from imitation.config import RunConfig  # noqa: E402
 from imitation.results import WORDS, package_versions  # noqa: E402
 from imitation.runstate import RunState  # noqa: E402
@@ -38,6 +40,29 @@ READOUTS = ("paper", "hierarchical", "hierarchical_over_time")
 POLICIES = ("student", "student_hierarchical", "teacher")
 #: What ``peoplebot transfer`` writes into its folder.
 SUMMARY_VERSION = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class Scale:
+    """How much a transfer measures where its options do not say: the families (None: every
+    family that acts in the vision mode, ``perturbations.acts_in``), the levels of each (0 and
+    ``perturbations.ANCHOR_LEVELS``: the anchor's and one past it), the trials per row and policy
+    (of the source's trial length) and the watched steps for recognition."""
+
+    families: tuple | None
+    trials: int
+    recognition_steps: int
+
+
+#: ``peoplebot transfer`` and ``peoplebot transfer --quick``; their timings: docs/transfer.md.
+SCALES = {
+    "default": Scale(families=None, trials=10, recognition_steps=3000),
+    "quick": Scale(
+        families=("pose_noise", "latency", "command_latency", "acceleration"),
+        trials=3,
+        recognition_steps=1500,
+    ),
+}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -69,10 +94,17 @@ class CellResult:
         return cls(**data)
 
 
-def parse_families(text: str | None) -> tuple[str, ...]:
-    """Returns the families of ``"latency,dropout"`` (None: all); ValueError listing them."""
+class CellsFailed(RuntimeError):
+    """Some cells of a transfer failed (the others are kept; a rerun resumes)."""
+
+
+def parse_families(text: str | None, mode: str | None = None) -> tuple[str, ...]:
+    """Returns the families of ``"latency,dropout"`` (None: every family, or with a vision
+    ``mode`` every family that acts in it); ValueError listing them."""
     if text is None:
-        return tuple(perturbations.FAMILIES)
+        return tuple(
+            f for f in perturbations.FAMILIES if mode is None or perturbations.acts_in(f, mode)
+        )
     names = tuple(name.strip() for name in text.split(",") if name.strip())
     for name in names:
         if name not in perturbations.FAMILIES:
@@ -84,14 +116,15 @@ def parse_families(text: str | None) -> tuple[str, ...]:
     return names
 
 
-def parse_levels(text: str | None) -> tuple[int, ...] | None:
-    """Returns the level indices of ``"0,2,3"`` (None: every level of each family)."""
-    if text is None:
-        return None
+def parse_levels(text: str | None) -> tuple[int, ...] | str | None:
+    """Returns the level indices of ``"0,2,3"``, ``"all"`` for every level of each family, or
+    None (the default: 0 and each family's ``perturbations.ANCHOR_LEVELS``)."""
+    if text is None or text == "all":
+        return text
     try:
         levels = tuple(int(v) for v in text.split(","))
     except ValueError:
-        raise ValueError(f"--levels {text!r} must be level numbers like 0,1,3") from None
+        raise ValueError(f"--levels {text!r} must be level numbers like 0,1,3, or all") from None
     if any(level < 0 for level in levels) or len(set(levels)) != len(levels):
         raise ValueError(f"--levels {text!r} must be distinct level numbers >= 0")
     return levels
@@ -138,11 +171,17 @@ def source_run(source) -> RunConfig:
 def plan(base: RunConfig, families, levels=None) -> tuple[list, list[TransferCell]]:
     """Returns ``(rows, cells)``: per family and chosen level ``(family, index, level)`` and the
     distinct cells to run (a level equal to the base's perturbations is the ``baseline`` cell).
-    ``base``'s own perturbations (a preset) stay under every level."""
+    ``levels``: indices, ``"all"``, or None (0 and the family's ``ANCHOR_LEVELS``). ``base``'s
+    own perturbations (a preset) stay under every level."""
     rows, cells = [], {}
     for family in families:
         grid = perturbations.FAMILIES[family]
-        chosen = range(len(grid)) if levels is None else [i for i in levels if i < len(grid)]
+        if levels is None:
+            chosen = (0, *perturbations.ANCHOR_LEVELS[family])
+        elif levels == "all":
+            chosen = range(len(grid))
+        else:
+            chosen = [i for i in levels if i < len(grid)]
         for index in chosen:
             level = grid[index]
             config = base.replace({f"perturbations.{k}": v for k, v in level.items()})
@@ -159,16 +198,29 @@ def cell_name(base: RunConfig, family: str, index: int) -> str:
     return "baseline" if config == base else f"{family}-{index}"
 
 
-def run_cell(
-    cell: TransferCell, source: pathlib.Path, folder: pathlib.Path, fresh: bool = False
-) -> CellResult:
-    """Runs (or resumes) one cell in ``folder`` with the networks and test stream of ``source``
-    (``fresh``: what an earlier run wrote there is removed first); returns its numbers."""
-    config = cell.config
-    state = RunState(folder, config.to_dict(), fresh=fresh)
+def finished_cell(cell: TransferCell, folder: pathlib.Path, fresh: bool = False):
+    """Returns the numbers of ``cell`` if ``folder`` holds it finished, else None after making
+    the folder ready to run it (``fresh``: what an earlier run wrote there is removed; a stage
+    whose files were lost is forgotten). ValueError in one line when the folder holds a cell of
+    other settings."""
+    state = RunState(folder, cell.config.to_dict(), fresh=fresh)
     try:
         if state.done("performance") and not state.intact("performance"):
             state.forget(["performance"])
+        if state.done("recognition") and state.done("performance"):
+            return _cell_result(state)
+        return None
+    finally:
+        state.close()
+
+
+def run_cell(config: dict, source: str, folder: str) -> dict:
+    """Runs (or resumes) one cell of the configuration ``config`` (plain values) in ``folder``
+    with the networks and test stream of ``source``; returns its numbers (``CellResult`` as
+    JSON). The body of the Ray task."""
+    config, source, folder = RunConfig.from_dict(config), pathlib.Path(source), pathlib.Path(folder)
+    state = RunState(folder, config.to_dict())
+    try:
         if not state.done("recognition"):
             state.finish("recognition", _recognition(config, source))
         if not state.done("performance"):
@@ -176,10 +228,14 @@ def run_cell(
             state.finish(
                 "performance", _performance_json(rates), [folder / "performance_trials.json"]
             )
-        rec, perf = state.result("recognition"), state.result("performance")
-        return CellResult(rec["recognition"], rec["seen_fraction"], perf["rates"], perf["trials"])
+        return _cell_result(state).to_json()
     finally:
         state.close()
+
+
+def _cell_result(state: RunState) -> CellResult:
+    rec, perf = state.result("recognition"), state.result("performance")
+    return CellResult(rec["recognition"], rec["seen_fraction"], perf["rates"], perf["trials"])
 
 
 def _recognition(config: RunConfig, source: pathlib.Path) -> dict:
@@ -263,27 +319,66 @@ def transfer(
     base_perturbations: perturbations.PerturbationConfig | None = None,
     changes: dict | None = None,
     fresh: bool = False,
+    address: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
 ) -> dict:
     """Tests the networks of the finished run in ``source`` under each family's levels (see the
     module notes) in ``out``; returns the summary (what ``transfer.json`` holds).
 
+    ``families``: default every family that acts in the vision mode; ``levels``: see ``plan``;
     ``vision``: the vision mode (default the source's); ``base_perturbations``: perturbations
     under every level (a preset; default none); ``changes``: other dotted config keys (trials,
-    trial seconds, vision test steps, workers); ``fresh``: every cell starts over (a cell made
-    with other settings is refused without it)."""
-    source, out = pathlib.Path(source), pathlib.Path(out)
+    trial seconds, vision test steps; ``workers``: trial processes per cell, default 1);
+    ``fresh``: every cell starts over (a cell made with other settings is refused without it);
+    ``address``: a Ray cluster (else ``RAY_ADDRESS``, else a local Ray); ``workers``: cells at
+    once."""
+    source, out = pathlib.Path(source).resolve(), pathlib.Path(out).resolve()
     base = source_run(source).replace(
-        {"videos.enabled": False, **({"vision.mode": vision} if vision else {}), **(changes or {})}
+        {
+            "videos.enabled": False,
+            "workers": 1,
+            **({"vision.mode": vision} if vision else {}),
+            **(changes or {}),
+        }
     )
     if base_perturbations is not None:
         base = dataclasses.replace(base, perturbations=base_perturbations)
-    families = parse_families(None) if families is None else tuple(families)
+    families = parse_families(None, base.vision.mode) if families is None else tuple(families)
     rows, cells = plan(base, families, levels)
     (out / "cells").mkdir(parents=True, exist_ok=True)
     results = {}
-    for k, cell in enumerate(cells):
-        print(f"[transfer] cell {k + 1}/{len(cells)}: {cell.name}")
-        results[cell.name] = run_cell(cell, source, out / "cells" / cell.name, fresh)
+    for cell in cells:
+        earlier = finished_cell(cell, out / "cells" / cell.name, fresh)
+        if earlier is not None:
+            results[cell.name] = earlier
+    jobs = {
+        cell.name: (cell.config.to_dict(), str(source), str(out / "cells" / cell.name))
+        for cell in cells
+        if cell.name not in results
+    }
+    if progress:
+        print(f"[transfer] {len(cells)} cells: {len(results)} finished earlier, {len(jobs)} to run")
+    failed = []
+    if jobs:
+        for outcome in raytasks.run_tasks(
+            run_cell,
+            jobs,
+            address=address,
+            workers=workers,
+            cpus_per_task=base.workers,
+            progress=progress,
+            description="transfer cells",
+        ):
+            if outcome.error is not None:
+                failed.append(f"{outcome.key}: {outcome.error}")
+            else:
+                results[outcome.key] = CellResult.from_json(outcome.value)
+    if failed:
+        raise CellsFailed(
+            f"{len(failed)} of {len(cells)} transfer cells failed (rerun to resume the others): "
+            + "; ".join(failed)
+        )
     summary = _summary(source, base, families, rows, results)
     storage.write_json(out / "transfer.json", summary)
     storage.write_text(out / "transfer.md", markdown(summary))
