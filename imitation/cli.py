@@ -122,6 +122,12 @@ def reproduce_config(args):
         changes["hierarchical.enabled"] = False
     if args.mcap:
         changes["videos.mcap"] = True
+    if getattr(args, "randomise", None) is not None:
+        from imitation import randomisation
+
+        changes["randomisation.families"] = list(randomisation.parse_families(args.randomise))
+    if getattr(args, "randomise_level", None) is not None:
+        changes["randomisation.upper_level"] = args.randomise_level
     return config.replace(changes)
 
 
@@ -134,6 +140,7 @@ def _cmd_reproduce(args) -> int:
         vision = "head_odometry"
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
         f"{vision}-{config.learning.motor_source}-seed{config.seed}"
+        + ("-randomised" if config.randomisation.active else "")
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
@@ -198,6 +205,8 @@ def _cmd_transfer(args) -> int:
             fresh=args.fresh,
             address=args.address,
             workers=args.workers,
+            compare=args.compare,
+            compare_label=args.compare_label,
         )
     except transfer.CellsFailed as error:
         print(f"peoplebot transfer: {error}", file=sys.stderr)
@@ -396,6 +405,21 @@ def build_parser() -> argparse.ArgumentParser:
         "replaces --config's [perturbations]",
     )
     rep.add_argument(
+        "--randomise",
+        default=None,
+        metavar="FAMILIES",
+        help="domain randomisation while the student learns: the training stream seen through "
+        "these perception families (pose_noise, latency, dropout, occlusion, comma-separated, or "
+        "all), each minute drawing every family's level uniformly up to --randomise-level "
+        "(docs/transfer.md); default off",
+    )
+    rep.add_argument(
+        "--randomise-level",
+        type=int,
+        default=None,
+        help="the highest level of each randomised family's grid that is drawn (default 3)",
+    )
+    rep.add_argument(
         "--vision",
         choices=("truth", "overhead", "head"),
         default=None,
@@ -495,6 +519,20 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="the transfer's folder (default: renders/transfer/<run folder>-<vision>[-<preset>]); "
         "rerun to resume",
+    )
+    tra.add_argument(
+        "--compare",
+        type=pathlib.Path,
+        default=None,
+        metavar="RUN",
+        help="another finished run (e.g. one trained with --randomise) whose students are tested "
+        "in the same cells and shown in the same figures and envelope table",
+    )
+    tra.add_argument(
+        "--compare-label",
+        default=None,
+        help="the compared students' tag, '<policy> (<label>)' (default: 'randomised' for a run "
+        "trained with domain randomisation, else its folder's name)",
     )
     tra.add_argument(
         "--families",

@@ -36,7 +36,13 @@ from perception.pantilt import HeadMount
 from perception.wallframe import wrap_degrees
 
 #: Tags of the random generators derived from the run seed, one per use.
-RNG_TAGS = {"calibration": 1601, "vision": 1602, "image": 1603, "encoders": 1604}
+RNG_TAGS = {
+    "calibration": 1601,
+    "vision": 1602,
+    "image": 1603,
+    "encoders": 1604,
+    "randomisation": 1605,
+}
 
 
 def rng_for(seed, use: str, *keys: int) -> np.random.Generator:

@@ -214,23 +214,42 @@ def finished_cell(cell: TransferCell, folder: pathlib.Path, fresh: bool = False)
         state.close()
 
 
-def run_cell(config: dict, source: str, folder: str) -> dict:
+def run_cell(config: dict, source: str, folder: str, students_only: bool = False) -> dict:
     """Runs (or resumes) one cell of the configuration ``config`` (plain values) in ``folder``
-    with the networks and test stream of ``source``; returns its numbers (``CellResult`` as
-    JSON). The body of the Ray task."""
+    with the networks and test stream of ``source`` (``students_only``: no teacher reference
+    trials, for a compared run); returns its numbers (``CellResult`` as JSON). The body of the
+    Ray task."""
     config, source, folder = RunConfig.from_dict(config), pathlib.Path(source), pathlib.Path(folder)
+    policies = trials.policies_of(config)
+    if students_only:
+        policies = tuple(p for p in policies if p != "teacher")
     state = RunState(folder, config.to_dict())
     try:
         if not state.done("recognition"):
             state.finish("recognition", _recognition(config, source))
         if not state.done("performance"):
-            rates = trials.success_rates(config, folder, networks_from=source)
+            rates = trials.success_rates(config, folder, networks_from=source, policies=policies)
             state.finish(
                 "performance", _performance_json(rates), [folder / "performance_trials.json"]
             )
         return _cell_result(state).to_json()
     finally:
         state.close()
+
+
+def compared(result: CellResult, other: CellResult, label: str) -> CellResult:
+    """Returns ``result`` with the read-outs and students of ``other`` (a compared run's cell)
+    added under ``"<name> (<label>)"``."""
+
+    def tagged(mine: dict, theirs: dict) -> dict:
+        return {**mine, **{f"{name} ({label})": value for name, value in theirs.items()}}
+
+    return CellResult(
+        tagged(result.recognition, other.recognition),
+        result.seen_fraction,
+        tagged(result.performance, other.performance),
+        tagged(result.trials, other.trials),
+    )
 
 
 def _cell_result(state: RunState) -> CellResult:
@@ -291,12 +310,12 @@ def _performance_json(rates: dict) -> dict:
     return out
 
 
-def envelope(levels: list, results: list[CellResult]) -> dict:
+def envelope(levels: list, results: list[CellResult], policies=POLICIES) -> dict:
     """Returns, per policy and word, the largest level (its label) up to which every level
     succeeds at least ``ENVELOPE_RATE`` of the time, or None when level 0 already fails;
     ``levels`` and ``results`` in the family's order."""
     out = {}
-    for policy in POLICIES:
+    for policy in policies:
         for word in WORDS:
             largest = None
             for level, result in zip(levels, results, strict=True):
@@ -322,6 +341,8 @@ def transfer(
     address: str | None = None,
     workers: int | None = None,
     progress: bool = True,
+    compare=None,
+    compare_label: str | None = None,
 ) -> dict:
     """Tests the networks of the finished run in ``source`` under each family's levels (see the
     module notes) in ``out``; returns the summary (what ``transfer.json`` holds).
@@ -332,33 +353,48 @@ def transfer(
     trial seconds, vision test steps; ``workers``: trial processes per cell, default 1);
     ``fresh``: every cell starts over (a cell made with other settings is refused without it);
     ``address``: a Ray cluster (else ``RAY_ADDRESS``, else a local Ray); ``workers``: cells at
-    once."""
+    once; ``compare``: another finished run whose students are tested in the same cells (in
+    ``OUT/compare/cells/``, without the teacher) and reported beside these as
+    ``"<policy> (<compare_label>)"`` (default label: 'randomised' for a run trained with domain
+    randomisation, else its folder's name)."""
     source, out = pathlib.Path(source).resolve(), pathlib.Path(out).resolve()
-    base = source_run(source).replace(
-        {
-            "videos.enabled": False,
-            "workers": 1,
-            **({"vision.mode": vision} if vision else {}),
-            **(changes or {}),
-        }
-    )
+    settings = {
+        "videos.enabled": False,
+        "workers": 1,
+        **({"vision.mode": vision} if vision else {}),
+        **(changes or {}),
+    }
+    base = source_run(source).replace(settings)
     if base_perturbations is not None:
         base = dataclasses.replace(base, perturbations=base_perturbations)
     families = parse_families(None, base.vision.mode) if families is None else tuple(families)
     rows, cells = plan(base, families, levels)
-    (out / "cells").mkdir(parents=True, exist_ok=True)
+    # Every cell to run: (its key, the run whose networks it tests, its folder, the cell).
+    todo = [(cell.name, source, out / "cells" / cell.name, cell) for cell in cells]
+    other = None
+    if compare is not None:
+        compare = pathlib.Path(compare).resolve()
+        other = source_run(compare).replace({**settings, "vision.mode": base.vision.mode})
+        other = dataclasses.replace(other, perturbations=base.perturbations)
+        if compare_label is None:
+            compare_label = "randomised" if other.randomisation.active else compare.name
+        _, other_cells = plan(other, families, levels)
+        todo += [
+            (f"compare/{c.name}", compare, out / "compare" / "cells" / c.name, c)
+            for c in other_cells
+        ]
     results = {}
-    for cell in cells:
-        earlier = finished_cell(cell, out / "cells" / cell.name, fresh)
+    for key, _, folder, cell in todo:
+        earlier = finished_cell(cell, folder, fresh)
         if earlier is not None:
-            results[cell.name] = earlier
+            results[key] = earlier
     jobs = {
-        cell.name: (cell.config.to_dict(), str(source), str(out / "cells" / cell.name))
-        for cell in cells
-        if cell.name not in results
+        key: (cell.config.to_dict(), str(run), str(folder), key.startswith("compare/"))
+        for key, run, folder, cell in todo
+        if key not in results
     }
     if progress:
-        print(f"[transfer] {len(cells)} cells: {len(results)} finished earlier, {len(jobs)} to run")
+        print(f"[transfer] {len(todo)} cells: {len(results)} finished earlier, {len(jobs)} to run")
     failed = []
     if jobs:
         for outcome in raytasks.run_tasks(
@@ -376,17 +412,31 @@ def transfer(
                 results[outcome.key] = CellResult.from_json(outcome.value)
     if failed:
         raise CellsFailed(
-            f"{len(failed)} of {len(cells)} transfer cells failed (rerun to resume the others): "
+            f"{len(failed)} of {len(todo)} transfer cells failed (rerun to resume the others): "
             + "; ".join(failed)
         )
-    summary = _summary(source, base, families, rows, results)
+    policies = POLICIES
+    if other is not None:
+        students = [p for p in POLICIES if p != "teacher"]
+        policies = (*POLICIES, *(f"{p} ({compare_label})" for p in students))
+        results = {
+            cell.name: compared(results[cell.name], results[f"compare/{cell.name}"], compare_label)
+            for cell in cells
+        }
+    summary = _summary(source, base, families, rows, results, policies)
+    if other is not None:
+        summary["compare"] = {
+            "source": str(compare),
+            "label": compare_label,
+            "randomisation": other.to_dict().get("randomisation"),
+        }
     storage.write_json(out / "transfer.json", summary)
     storage.write_text(out / "transfer.md", markdown(summary))
     figures(summary, out / "figures")
     return summary
 
 
-def _summary(source, base: RunConfig, families, rows, results: dict) -> dict:
+def _summary(source, base: RunConfig, families, rows, results: dict, policies=POLICIES) -> dict:
     per_family = {}
     for family in families:
         mine = [(index, level) for f, index, level in rows if f == family]
@@ -402,12 +452,14 @@ def _summary(source, base: RunConfig, families, rows, results: dict) -> dict:
                 }
                 for (index, level), cell in zip(mine, cells, strict=True)
             ],
-            "envelope": envelope([level for _, level in mine], cells),
+            "envelope": envelope([level for _, level in mine], cells, policies),
         }
     return {
         "version": SUMMARY_VERSION,
         "source": str(source),
         "vision": base.vision.mode,
+        "randomisation": base.to_dict().get("randomisation"),
+        "policies": list(policies),
         "envelope_rate": ENVELOPE_RATE,
         "base_perturbations": base.to_dict()["perturbations"],
         "trials_per_row": base.performance.trials,
@@ -421,8 +473,21 @@ def _pct(value) -> str:
     return "-" if value is None else f"{100 * value:.0f}%"
 
 
+def _policies(summary: dict) -> list[str]:
+    return summary.get("policies", list(POLICIES))
+
+
+def _over_time(recognition: dict, label: str | None = None) -> dict:
+    """Returns the read-out a table shows: the hierarchical associator over time, or the paper's
+    network without it (of the compared run: ``label``)."""
+    tag = f" ({label})" if label else ""
+    return recognition.get(f"hierarchical_over_time{tag}") or recognition.get(f"paper{tag}", {})
+
+
 def markdown(summary: dict) -> str:
     """Returns ``transfer.md``: the operating envelope, then per family its levels' numbers."""
+    policies = _policies(summary)
+    label = (summary.get("compare") or {}).get("label")
     lines = [
         f"# Transfer: {summary['source']} ({summary['vision']} vision)",
         "",
@@ -430,40 +495,52 @@ def markdown(summary: dict) -> str:
         f"{summary['recognition_steps']} watched steps (the hierarchical associator over time, "
         "or the paper's network without it); 'seen': steps the teacher's pose was known. "
         "Perturbations: docs/transfer.md.",
+    ]
+    if label:
+        lines += [
+            "",
+            f"Compared: the students of {summary['compare']['source']} as '<policy> ({label})' "
+            f"(its randomisation: {summary['compare']['randomisation'] or 'none'}).",
+        ]
+    lines += [
         "",
         f"## Operating envelope (largest level with success >= {100 * ENVELOPE_RATE:.0f}%)",
         "",
-        "| family | " + " | ".join(f"{p} {w}" for p in POLICIES for w in WORDS) + " |",
-        "|---|" + "---|" * (len(POLICIES) * len(WORDS)),
+        "| family | " + " | ".join(f"{p} {w}" for p in policies for w in WORDS) + " |",
+        "|---|" + "---|" * (len(policies) * len(WORDS)),
     ]
     for family, data in summary["families"].items():
         cells = [
-            str(data["envelope"].get(p, {}).get(w, "-") or "none") for p in POLICIES for w in WORDS
+            str(data["envelope"].get(p, {}).get(w, "-") or "none") for p in policies for w in WORDS
         ]
         lines.append(f"| {family} | " + " | ".join(cells) + " |")
+    recognitions = [None, label] if label else [None]
     for family, data in summary["families"].items():
         lines += [
             "",
             f"## {family}",
             "",
-            "| level | seen | recognition go / pick / lift | "
-            + " | ".join(f"{p} go / pick / lift" for p in POLICIES)
+            "| level | seen | "
+            + " | ".join(
+                f"recognition{f' ({tag})' if tag else ''} go / pick / lift" for tag in recognitions
+            )
+            + " | "
+            + " | ".join(f"{p} go / pick / lift" for p in policies)
             + " |",
-            "|---|---|---|" + "---|" * len(POLICIES),
+            "|---|---|" + "---|" * (len(recognitions) + len(policies)),
         ]
         for level in data["levels"]:
-            rec = level["recognition"].get("hierarchical_over_time") or level["recognition"].get(
-                "paper", {}
-            )
+            rec = [
+                " / ".join(_pct(_over_time(level["recognition"], tag).get(w)) for w in WORDS)
+                for tag in recognitions
+            ]
             perf = [
                 " / ".join(_pct(level["performance"].get(p, {}).get(w)) for w in WORDS)
-                for p in POLICIES
+                for p in policies
             ]
             lines.append(
                 f"| {level['label']} | {_pct(level['seen_fraction'])} | "
-                + " / ".join(_pct(rec.get(w)) for w in WORDS)
-                + " | "
-                + " | ".join(perf)
+                + " | ".join(rec + perf)
                 + " |"
             )
     return "\n".join(lines) + "\n"
@@ -471,17 +548,26 @@ def markdown(summary: dict) -> str:
 
 def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
     """Draws ``<family>.png`` per family: success per policy and word (left) and correct
-    recognition per read-out and word (right) against the level; returns the paths."""
+    recognition per read-out and word (right) against the level (a compared run's in their own
+    colours); returns the paths."""
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     styles = {"go": "-", "pick": "--", "lift": ":"}
     colours = {"student": "C0", "student_hierarchical": "C2", "teacher": "C7"}
     readout_colours = {"paper": "C0", "hierarchical": "C1", "hierarchical_over_time": "C2"}
+    label = (summary.get("compare") or {}).get("label")
+    if label:
+        colours |= {f"student ({label})": "C3", f"student_hierarchical ({label})": "C4"}
+        readout_colours |= {
+            f"paper ({label})": "C3",
+            f"hierarchical ({label})": "C5",
+            f"hierarchical_over_time ({label})": "C4",
+        }
     for family, data in summary["families"].items():
         levels = data["levels"]
         x = list(range(len(levels)))
         fig, (left, right) = plt.subplots(1, 2, figsize=(14, 4.5), sharey=True)
-        for policy in POLICIES:
+        for policy in _policies(summary):
             for word in WORDS:
                 y = [lv["performance"].get(policy, {}).get(word) for lv in levels]
                 if any(v is not None for v in y):
@@ -490,7 +576,7 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
                         [float("nan") if v is None else v for v in y],
                         styles[word],
                         marker="o",
-                        color=colours[policy],
+                        color=colours.get(policy, "C9"),
                         label=f"{policy} {word}",
                     )
         for readout, colour in readout_colours.items():

@@ -38,12 +38,9 @@ def local_ray():
     ray.shutdown()
 
 
-@pytest.fixture(scope="module")
-def trained_run(tmp_path_factory):
-    """Returns a run folder with the streams and learning stages of a tiny run finished (what a
-    transfer reads)."""
-    folder = tmp_path_factory.mktemp("source")
-    config = RunConfig.quick().replace(TINY)
+def _trained(folder, config: RunConfig):
+    """Finishes the streams and learning stages of ``config`` in ``folder`` (what a transfer
+    reads); returns the folder."""
     state = RunState(folder, config.to_dict())
     streams = reproduce.stage_streams(config, folder)
     state.finish(
@@ -55,6 +52,19 @@ def trained_run(tmp_path_factory):
     state.finish("learning", learned.to_json(), [folder / learned.paper.network])
     state.close()
     return folder
+
+
+@pytest.fixture(scope="module")
+def trained_run(tmp_path_factory):
+    """Returns a tiny run folder with its networks trained."""
+    return _trained(tmp_path_factory.mktemp("source"), RunConfig.quick().replace(TINY))
+
+
+@pytest.fixture(scope="module")
+def randomised_run(tmp_path_factory):
+    """Returns the same tiny run trained with the perception faults randomised."""
+    config = RunConfig.quick().replace({**TINY, "randomisation.families": ["pose_noise"]})
+    return _trained(tmp_path_factory.mktemp("randomised"), config)
 
 
 def test_transfer_reports_each_level_and_the_envelope_and_resumes(trained_run, tmp_path, local_ray):
@@ -119,6 +129,37 @@ def test_transfer_reports_each_level_and_the_envelope_and_resumes(trained_run, t
     assert main([*trials_2, "--fresh"]) == 0
     again = json.loads((out / "transfer.json").read_text())
     assert again["families"]["latency"]["levels"][0]["trials"]["teacher"]["lift"] == 2
+
+
+def test_a_compared_run_appears_in_the_same_report(
+    trained_run, randomised_run, tmp_path, local_ray
+):
+    out = tmp_path / "transfer"
+    argv = ["transfer", "--reuse-from", str(trained_run), "--compare", str(randomised_run)]
+    argv += ["--out", str(out), "--families", "pose_noise", "--levels", "0,4", "--trials", "1"]
+    assert main([*argv, "--vision-test-steps", "50"]) == 0
+    summary = json.loads((out / "transfer.json").read_text())
+    assert summary["compare"]["label"] == "randomised"
+    assert summary["compare"]["randomisation"]["families"] == ["pose_noise"]
+    assert summary["policies"] == [
+        "student",
+        "student_hierarchical",
+        "teacher",
+        "student (randomised)",
+        "student_hierarchical (randomised)",
+    ]
+    level = summary["families"]["pose_noise"]["levels"][1]
+    assert set(level["performance"]) == {"student", "teacher", "student (randomised)"}
+    assert level["trials"]["student (randomised)"]["go"] == 1
+    assert set(level["recognition"]) == {"paper", "paper (randomised)"}
+    assert "student (randomised)" in summary["families"]["pose_noise"]["envelope"]
+    # The compared run's cells hold its students only; the teacher runs once, in the main cells.
+    trials = json.loads(
+        (out / "compare" / "cells" / "pose_noise-4" / "performance_trials.json").read_text()
+    )
+    assert {t["policy"] for t in trials} == {"student"}
+    text = (out / "transfer.md").read_text()
+    assert "student (randomised) go" in text and "recognition (randomised)" in text
 
 
 def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
