@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import pathlib
+import time
 
 import matplotlib
 
@@ -78,13 +80,15 @@ class TransferCell:
 @dataclasses.dataclass(frozen=True)
 class CellResult:
     """A cell's numbers: correct recognition per read-out and word (None: no steps of it seen),
-    the fraction of steps the teacher was seen, and success rates per policy and row with their
-    trial counts."""
+    the fraction of steps the teacher was seen, success rates per policy and row with their
+    trial counts, and the CPU seconds each stage took (in the process that ran it, with one
+    trial process: the cell's whole cost; empty for cells made before they were kept)."""
 
     recognition: dict
     seen_fraction: float
     performance: dict
     trials: dict
+    cpu_seconds: dict = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict:
         return dataclasses.asdict(self)
@@ -226,11 +230,19 @@ def run_cell(config: dict, source: str, folder: str, students_only: bool = False
     state = RunState(folder, config.to_dict())
     try:
         if not state.done("recognition"):
-            state.finish("recognition", _recognition(config, source))
+            wall, cpu = time.perf_counter(), time.process_time()
+            result = _recognition(config, source)
+            result["cpu_seconds"] = time.process_time() - cpu
+            state.finish("recognition", result, seconds=time.perf_counter() - wall)
         if not state.done("performance"):
+            wall, cpu = time.perf_counter(), time.process_time()
             rates = trials.success_rates(config, folder, networks_from=source, policies=policies)
+            result = {**_performance_json(rates), "cpu_seconds": time.process_time() - cpu}
             state.finish(
-                "performance", _performance_json(rates), [folder / "performance_trials.json"]
+                "performance",
+                result,
+                [folder / "performance_trials.json"],
+                seconds=time.perf_counter() - wall,
             )
         return _cell_result(state).to_json()
     finally:
@@ -249,12 +261,21 @@ def compared(result: CellResult, other: CellResult, label: str) -> CellResult:
         result.seen_fraction,
         tagged(result.performance, other.performance),
         tagged(result.trials, other.trials),
+        {
+            stage: seconds + other.cpu_seconds.get(stage, 0.0)
+            for stage, seconds in result.cpu_seconds.items()
+        },
     )
 
 
 def _cell_result(state: RunState) -> CellResult:
     rec, perf = state.result("recognition"), state.result("performance")
-    return CellResult(rec["recognition"], rec["seen_fraction"], perf["rates"], perf["trials"])
+    cpu = {
+        stage: result["cpu_seconds"]
+        for stage, result in (("recognition", rec), ("performance", perf))
+        if "cpu_seconds" in result
+    }
+    return CellResult(rec["recognition"], rec["seen_fraction"], perf["rates"], perf["trials"], cpu)
 
 
 def _recognition(config: RunConfig, source: pathlib.Path) -> dict:
@@ -463,6 +484,8 @@ def _summary(source, base: RunConfig, families, rows, results: dict, policies=PO
         "envelope_rate": ENVELOPE_RATE,
         "base_perturbations": base.to_dict()["perturbations"],
         "trials_per_row": base.performance.trials,
+        "cells": len(results),
+        "cpu_seconds": sum(sum(r.cpu_seconds.values()) for r in results.values()),
         "recognition_steps": base.vision.test_steps,
         "families": per_family,
         "versions": package_versions(),
@@ -546,8 +569,22 @@ def markdown(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def wilson_interval(rate: float | None, trials: int | None) -> tuple[float, float]:
+    """Returns the 95% Wilson score interval of a success ``rate`` over ``trials`` (NaN, NaN
+    without trials)."""
+    if rate is None or not trials:
+        return float("nan"), float("nan")
+    z = 1.959964
+    centre = (rate + z * z / (2 * trials)) / (1 + z * z / trials)
+    half = (
+        z / (1 + z * z / trials) * math.sqrt(rate * (1 - rate) / trials + z * z / (4 * trials**2))
+    )
+    return max(centre - half, 0.0), min(centre + half, 1.0)
+
+
 def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
-    """Draws ``<family>.png`` per family: success per policy and word (left) and correct
+    """Draws ``<family>.png`` per family: success per policy and word with its 95% Wilson
+    interval (left) and correct
     recognition per read-out and word (right) against the level (a compared run's in their own
     colours); returns the paths."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -571,11 +608,20 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
             for word in WORDS:
                 y = [lv["performance"].get(policy, {}).get(word) for lv in levels]
                 if any(v is not None for v in y):
-                    left.plot(
+                    n = [lv["trials"].get(policy, {}).get(word) for lv in levels]
+                    bounds = [wilson_interval(v, k) for v, k in zip(y, n, strict=True)]
+                    rate = [float("nan") if v is None else v for v in y]
+                    left.errorbar(
                         x,
-                        [float("nan") if v is None else v for v in y],
-                        styles[word],
+                        rate,
+                        yerr=[
+                            [r - lo for r, (lo, _) in zip(rate, bounds, strict=True)],
+                            [hi - r for r, (_, hi) in zip(rate, bounds, strict=True)],
+                        ],
+                        fmt=styles[word],
                         marker="o",
+                        capsize=2,
+                        elinewidth=0.6,
                         color=colours.get(policy, "C9"),
                         label=f"{policy} {word}",
                     )

@@ -4,6 +4,7 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
 # isort: split
 import json
+import math
 
 import pytest
 
@@ -169,3 +170,9 @@ def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
         transfer.parse_families("nope")
     with pytest.raises(ValueError, match="--levels"):
         transfer.parse_levels("a,1")
+
+
+def test_the_figures_intervals_are_wilsons():
+    assert transfer.wilson_interval(0.5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
+    assert transfer.wilson_interval(1.0, 3) == pytest.approx((0.4385, 1.0), abs=1e-4)
+    assert all(math.isnan(v) for v in transfer.wilson_interval(None, 0))
