@@ -579,7 +579,8 @@ def wilson_interval(rate: float | None, trials: int | None) -> tuple[float, floa
     half = (
         z / (1 + z * z / trials) * math.sqrt(rate * (1 - rate) / trials + z * z / (4 * trials**2))
     )
-    return max(centre - half, 0.0), min(centre + half, 1.0)
+    # It holds the rate; rounding aside (at a rate of 0 or 1).
+    return min(max(centre - half, 0.0), rate), max(min(centre + half, 1.0), rate)
 
 
 def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
@@ -615,8 +616,8 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
                         x,
                         rate,
                         yerr=[
-                            [r - lo for r, (lo, _) in zip(rate, bounds, strict=True)],
-                            [hi - r for r, (_, hi) in zip(rate, bounds, strict=True)],
+                            [max(r - lo, 0.0) for r, (lo, _) in zip(rate, bounds, strict=True)],
+                            [max(hi - r, 0.0) for r, (_, hi) in zip(rate, bounds, strict=True)],
                         ],
                         fmt=styles[word],
                         marker="o",

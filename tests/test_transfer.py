@@ -188,4 +188,8 @@ def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
 def test_the_figures_intervals_are_wilsons():
     assert transfer.wilson_interval(0.5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
     assert transfer.wilson_interval(1.0, 3) == pytest.approx((0.4385, 1.0), abs=1e-4)
+    for trials in range(1, 60):  # it holds the rate, rounding included
+        for k in range(trials + 1):
+            low, high = transfer.wilson_interval(k / trials, trials)
+            assert low <= k / trials <= high
     assert all(math.isnan(v) for v in transfer.wilson_interval(None, 0))
