@@ -505,6 +505,12 @@ def build_parser() -> argparse.ArgumentParser:
         "transfer",
         help="a trained run's networks under each perturbation family and level: recognition, "
         "performing and the operating envelope (docs/transfer.md)",
+        description="A trained run's networks under each perturbation family and level, as Ray "
+        "tasks. By default: every family that acts in the vision mode at 3 levels (0, the "
+        "anchor's level and one past it), 10 trials per row and policy of the source's trial "
+        "length, 3000 recognition steps; in the 'truth' mode 21 cells, about 10 minutes on 2 "
+        "idle cores (--quick: 9 cells, about 2 minutes). Camera modes watch and perform through "
+        "the camera and take far longer. Timings and grids: docs/transfer.md.",
         parents=[debug],
     )
     tra.add_argument(
@@ -551,8 +557,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--quick",
         action="store_true",
         help="a first look: the families pose_noise, latency, command_latency and acceleration, "
-        "3 trials per row, 1500 recognition steps (about 2 minutes on 2 cores in the 'truth' "
-        "mode)",
+        "3 trials per row, 1500 recognition steps (about 2 minutes on 2 idle cores in the "
+        "'truth' mode)",
     )
     tra.add_argument(
         "--vision",

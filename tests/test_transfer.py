@@ -193,3 +193,22 @@ def test_the_figures_intervals_are_wilsons():
             low, high = transfer.wilson_interval(k / trials, trials)
             assert low <= k / trials <= high
     assert all(math.isnan(v) for v in transfer.wilson_interval(None, 0))
+
+
+def test_the_default_grid_is_what_the_help_says():
+    from imitation import perturbations
+
+    counts = [
+        sum(perturbations.acts_in(f, mode) for f in perturbations.FAMILIES)
+        for mode in ("truth", "overhead", "head")
+    ]
+    assert counts == [10, 21, 22]  # the numbers in --families's help
+    assert set(perturbations.ANCHOR_LEVELS) == set(perturbations.FAMILIES)
+    for family, (anchor, past) in perturbations.ANCHOR_LEVELS.items():
+        assert 0 < anchor < past < len(perturbations.FAMILIES[family]), family
+    base = RunConfig.quick()
+    rows, cells = transfer.plan(base, transfer.parse_families(None, "truth"))
+    assert len(cells) == 21 and len(rows) == 30  # --help: 21 cells in the 'truth' mode
+    quick = transfer.SCALES["quick"]
+    assert len(transfer.plan(base, quick.families)[1]) == 9
+    assert (transfer.SCALES["default"].trials, quick.trials) == (10, 3)
