@@ -212,3 +212,23 @@ def test_the_default_grid_is_what_the_help_says():
     quick = transfer.SCALES["quick"]
     assert len(transfer.plan(base, quick.families)[1]) == 9
     assert (transfer.SCALES["default"].trials, quick.trials) == (10, 3)
+
+
+def test_ray_tasks_report_each_outcome_and_a_failure_in_one_line(local_ray):
+    from imitation import raytasks
+
+    def _square(x):  # defined here, so Ray sends it by value (workers cannot import tests)
+        if x < 0:
+            raise ValueError(f"negative: {x}")
+        return x * x
+
+    outcomes = {
+        o.key: o
+        for o in raytasks.run_tasks(
+            _square, {"a": (2,), "b": (-1,), "c": (3,)}, workers=1, progress=False
+        )
+    }
+    assert (outcomes["a"].value, outcomes["c"].value) == (4, 9)
+    assert outcomes["b"].value is None and outcomes["b"].error == "ValueError: negative: -1"
+    with pytest.raises(ValueError, match="workers must be at least 1"):
+        next(raytasks.run_tasks(_square, {}, workers=0))
