@@ -128,6 +128,12 @@ def reproduce_config(args):
         changes["hierarchical.enabled"] = False
     if args.mcap:
         changes["videos.mcap"] = True
+    if getattr(args, "randomise", None) is not None:
+        from imitation import randomisation
+
+        changes["randomisation.families"] = list(randomisation.parse_families(args.randomise))
+    if getattr(args, "randomise_level", None) is not None:
+        changes["randomisation.upper_level"] = args.randomise_level
     return config.replace(changes)
 
 
@@ -140,6 +146,7 @@ def _cmd_reproduce(args) -> int:
         vision = "head_odometry"
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
         f"{vision}-{config.learning.motor_source}-seed{config.seed}"
+        + ("-randomised" if config.randomisation.active else "")
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
@@ -176,31 +183,40 @@ def _cmd_sweep(args) -> int:
 def _cmd_transfer(args) -> int:
     from imitation import perturbations, transfer
 
+    scale = transfer.SCALES["quick" if args.quick else "default"]
     changes = {
-        key: getattr(args, option)
-        for option, key in (
-            ("trials", "performance.trials"),
-            ("trial_seconds", "performance.trial_seconds"),
-            ("vision_test_steps", "vision.test_steps"),
-            ("workers", "workers"),
-        )
-        if getattr(args, option) is not None
+        "performance.trials": args.trials or scale.trials,
+        "vision.test_steps": args.vision_test_steps or scale.recognition_steps,
+        "workers": args.trial_processes,
     }
+    if args.trial_seconds is not None:
+        changes["performance.trial_seconds"] = args.trial_seconds
     vision = args.vision or transfer.source_run(args.reuse_from).vision.mode
     source = pathlib.Path(args.reuse_from).resolve()
     out = args.out or RENDERS / "transfer" / (
         f"{source.name}-{vision}" + (f"-{args.preset}" if args.preset else "")
     )
-    transfer.transfer(
-        args.reuse_from,
-        out,
-        families=transfer.parse_families(args.families),
-        levels=transfer.parse_levels(args.levels),
-        vision=args.vision,
-        base_perturbations=perturbations.preset(args.preset) if args.preset else None,
-        changes=changes,
-        fresh=args.fresh,
-    )
+    families = args.families
+    if families is None and scale.families is not None:
+        families = ",".join(scale.families)
+    try:
+        transfer.transfer(
+            args.reuse_from,
+            out,
+            families=transfer.parse_families(families, vision),
+            levels=transfer.parse_levels(args.levels),
+            vision=args.vision,
+            base_perturbations=perturbations.preset(args.preset) if args.preset else None,
+            changes=changes,
+            fresh=args.fresh,
+            address=args.address,
+            workers=args.workers,
+            compare=args.compare,
+            compare_label=args.compare_label,
+        )
+    except transfer.CellsFailed as error:
+        print(f"peoplebot transfer: {error}", file=sys.stderr)
+        return 1
     print((pathlib.Path(out) / "transfer.md").read_text())
     print(f"transfer folder: {out} (transfer.json, transfer.md, figures/, cells/)")
     return 0
@@ -403,6 +419,21 @@ def build_parser() -> argparse.ArgumentParser:
         "replaces --config's [perturbations]",
     )
     rep.add_argument(
+        "--randomise",
+        default=None,
+        metavar="FAMILIES",
+        help="domain randomisation while the student learns: the training stream seen through "
+        "these perception families (pose_noise, latency, dropout, occlusion, comma-separated, or "
+        "all), each minute drawing every family's level uniformly up to --randomise-level "
+        "(docs/transfer.md); default off",
+    )
+    rep.add_argument(
+        "--randomise-level",
+        type=int,
+        default=None,
+        help="the highest level of each randomised family's grid that is drawn (default 3)",
+    )
+    rep.add_argument(
         "--vision",
         choices=("truth", "overhead", "head"),
         default=None,
@@ -488,6 +519,12 @@ def build_parser() -> argparse.ArgumentParser:
         "transfer",
         help="a trained run's networks under each perturbation family and level: recognition, "
         "performing and the operating envelope (docs/transfer.md)",
+        description="A trained run's networks under each perturbation family and level, as Ray "
+        "tasks. By default: every family that acts in the vision mode at 3 levels (0, the "
+        "anchor's level and one past it), 10 trials per row and policy of the source's trial "
+        "length, 3000 recognition steps; in the 'truth' mode 21 cells, about 10 minutes on 2 "
+        "idle cores (--quick: 9 cells, about 2 minutes). Camera modes watch and perform through "
+        "the camera and take far longer. Timings and grids: docs/transfer.md.",
         parents=[debug],
     )
     tra.add_argument(
@@ -504,14 +541,38 @@ def build_parser() -> argparse.ArgumentParser:
         "rerun to resume",
     )
     tra.add_argument(
+        "--compare",
+        type=pathlib.Path,
+        default=None,
+        metavar="RUN",
+        help="another finished run (e.g. one trained with --randomise) whose students are tested "
+        "in the same cells and shown in the same figures and envelope table",
+    )
+    tra.add_argument(
+        "--compare-label",
+        default=None,
+        help="the compared students' tag, '<policy> (<label>)' (default: 'randomised' for a run "
+        "trained with domain randomisation, else its folder's name)",
+    )
+    tra.add_argument(
         "--families",
         default=None,
-        help="comma-separated families (default: all; see docs/transfer.md), e.g. latency,dropout",
+        help="comma-separated families (default: every family that acts in the vision mode, "
+        "10 in 'truth', 21 in 'overhead', 22 in 'head'; see docs/transfer.md), e.g. "
+        "latency,dropout",
     )
     tra.add_argument(
         "--levels",
         default=None,
-        help="comma-separated level numbers of each family's grid, 0 = off (default: all)",
+        help="comma-separated level numbers of each family's grid, 0 = off, or 'all' (default: "
+        "0, the level of the family's anchor and one past it)",
+    )
+    tra.add_argument(
+        "--quick",
+        action="store_true",
+        help="a first look: the families pose_noise, latency, command_latency and acceleration, "
+        "3 trials per row, 1500 recognition steps (about 2 minutes on 2 idle cores in the "
+        "'truth' mode)",
     )
     tra.add_argument(
         "--vision",
@@ -525,18 +586,42 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="perturbations under every level (e.g. realistic); default none",
     )
-    tra.add_argument("--trials", type=_positive_int, default=None, help="trials per row and policy")
     tra.add_argument(
-        "--trial-seconds", type=_positive_float, default=None, help="seconds per trial"
+        "--trials",
+        type=_positive_int,
+        default=None,
+        help="trials per row and policy (default 10, --quick 3)",
+    )
+    tra.add_argument(
+        "--trial-seconds",
+        type=_positive_float,
+        default=None,
+        help="seconds per trial (default: the source run's)",
     )
     tra.add_argument(
         "--vision-test-steps",
         type=_positive_int,
         default=None,
-        help="steps watched for recognition per cell",
+        help="steps watched for recognition per cell (default 3000, --quick 1500)",
     )
     tra.add_argument(
-        "--workers", type=_positive_int, default=None, help="processes for a cell's trials"
+        "--address",
+        default=None,
+        help="a Ray cluster to run the cells on, whose nodes see the source run and --out at the "
+        "same paths (else RAY_ADDRESS, else a local Ray on this machine)",
+    )
+    tra.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        help="cells at once (default: this machine's cores on a local Ray, all on a cluster)",
+    )
+    tra.add_argument(
+        "--trial-processes",
+        type=_positive_int,
+        default=1,
+        help="processes for one cell's trials (default 1; each cell's Ray task reserves as many "
+        "CPUs)",
     )
     tra.add_argument(
         "--fresh",
@@ -567,7 +652,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="a Ray cluster to join (else RAY_ADDRESS, else a local Ray on this machine)",
     )
     sweep.add_argument(
-        "--workers", type=_positive_int, default=None, help="cells at once on a local Ray (cores)"
+        "--workers",
+        type=_positive_int,
+        default=None,
+        help="cells at once (default: this machine's cores on a local Ray, all on a cluster)",
     )
     sweep.add_argument(
         "run", nargs=argparse.REMAINDER, help="reproduce [its options]: what each cell runs"

@@ -24,6 +24,7 @@ from imitation.learning import MOTOR_SOURCES
 from imitation.observers import SELF_LOCALISATIONS, VISION_MODES
 from imitation.performance import DRIVE_MODES, SuccessConfig
 from imitation.perturbations import PerturbationConfig
+from imitation.randomisation import RandomisationConfig
 from peoplebot_sim.task import TaskConfig
 from peoplebot_sim.teacher import TeacherConfig
 from perception.drive import DriveSpeeds
@@ -247,6 +248,9 @@ class RunConfig:
       perturbations: how the student's robot differs from the simulator's best case when it is
         tested (recognition through the camera, performing, videos); the streams and the
         learning never see them (``imitation.perturbations``; all off by default).
+      randomisation: domain randomisation of the training stream: the perception faults the
+        student learns under (``imitation.randomisation``; off by default, and then left out of
+        ``to_dict`` so that runs made before it existed keep their identity).
     """
 
     seed: int = 0
@@ -261,6 +265,7 @@ class RunConfig:
     performance: PerformanceConfig = PerformanceConfig()
     videos: VideoConfig = VideoConfig()
     perturbations: PerturbationConfig = PerturbationConfig()
+    randomisation: RandomisationConfig = RandomisationConfig()
 
     def __post_init__(self):
         if (
@@ -313,8 +318,12 @@ class RunConfig:
         }
 
     def to_dict(self) -> dict:
-        """Returns the tree as plain values (tuples as lists), as TOML and JSON hold it."""
-        return _plain(dataclasses.asdict(self))
+        """Returns the tree as plain values (tuples as lists), as TOML and JSON hold it; the
+        ``randomisation`` section only when it is on."""
+        tree = _plain(dataclasses.asdict(self))
+        if not self.randomisation.active:
+            del tree["randomisation"]
+        return tree
 
     @classmethod
     def from_dict(cls, data: dict, base: RunConfig | None = None) -> RunConfig:

@@ -36,7 +36,13 @@ from perception.pantilt import HeadMount
 from perception.wallframe import wrap_degrees
 
 #: Tags of the random generators derived from the run seed, one per use.
-RNG_TAGS = {"calibration": 1601, "vision": 1602, "image": 1603, "encoders": 1604}
+RNG_TAGS = {
+    "calibration": 1601,
+    "vision": 1602,
+    "image": 1603,
+    "encoders": 1604,
+    "randomisation": 1605,
+}
 
 
 def rng_for(seed, use: str, *keys: int) -> np.random.Generator:
@@ -233,6 +239,53 @@ FAMILIES = {
     "floor_friction": _levels("body.floor_friction_fraction", (0, -0.1, -0.3, -0.5, -0.7, -0.9)),
     "caster_friction": _levels("body.caster_friction", (0, 0.02, 0.05, 0.1, 0.2, 0.4)),
 }
+
+
+#: Per family, the two levels besides 0 that a default ``peoplebot transfer`` measures: the level
+#: nearest its anchor (or the ``realistic`` preset) and one past it (docs/transfer.md).
+ANCHOR_LEVELS = {
+    "pose_noise": (1, 4),
+    "latency": (1, 3),
+    "dropout": (1, 3),
+    "occlusion": (1, 3),
+    "pixel_noise": (1, 3),
+    "motion_blur": (1, 3),
+    "jpeg": (1, 3),
+    "exposure": (1, 3),
+    "lens_distortion": (1, 3),
+    "lighting": (1, 3),
+    "shadows": (1, 3),
+    "surface_colour": (1, 3),
+    "focal_error": (2, 4),
+    "mount_position": (2, 4),
+    "mount_rotation": (1, 3),
+    "encoder_noise": (1, 3),
+    "command_latency": (1, 3),
+    "acceleration": (2, 3),
+    "wheel_trim": (2, 4),
+    "mass": (1, 4),
+    "floor_friction": (1, 3),
+    "caster_friction": (2, 4),
+}
+
+#: The vision modes in which each section of the perturbations acts: the camera's frames, the
+#: room's appearance and the calibration only where a camera is watched; the wheel encoders only
+#: where odometry gives the student's own pose (the head mode).
+SECTION_MODES = {
+    "perception": ("truth", "overhead", "head"),
+    "image": ("overhead", "head"),
+    "appearance": ("overhead", "head"),
+    "calibration": ("overhead", "head"),
+    "proprioception": ("head",),
+    "actuation": ("truth", "overhead", "head"),
+    "body": ("truth", "overhead", "head"),
+}
+
+
+def acts_in(family: str, mode: str) -> bool:
+    """Returns whether ``family``'s levels change anything in the vision ``mode``."""
+    sections = {key.split(".", 1)[0] for level in FAMILIES[family] for key in level}
+    return any(mode in SECTION_MODES[section] for section in sections)
 
 
 def preset(name: str) -> PerturbationConfig:

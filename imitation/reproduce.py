@@ -30,7 +30,7 @@ from associator import encoding, persistence
 from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from imitation import config as run_config
-from imitation import learning, page, recognition, report, storage, trials, videos
+from imitation import learning, page, randomisation, recognition, report, storage, trials, videos
 from imitation.config import RunConfig
 from imitation.parallel import run_parallel
 from imitation.results import (
@@ -108,10 +108,14 @@ def _encoder() -> encoding.VisionEncoder:
 
 
 def stage_learning(config: RunConfig, folder: pathlib.Path, encoder) -> LearningResult:
-    """Trains the paper's network and, if enabled, the hierarchical associator (checkpointed)."""
+    """Trains the paper's network and, if enabled, the hierarchical associator (checkpointed),
+    on the training stream as the student sees it (``imitation.randomisation``: the stream
+    itself unless randomisation is on)."""
     stream_path = folder / "streams" / "train.npz"
-    stream = TeacherStream.load(stream_path)
     dt = config.task.control_timestep
+    stream, _ = randomisation.randomised_stream(
+        TeacherStream.load(stream_path), config.randomisation, dt, config.seed
+    )
     motor_source = config.learning.motor_source
     # What the networks learn from: checkpoints made from anything else are never resumed.
     provenance = {
@@ -119,6 +123,8 @@ def stage_learning(config: RunConfig, folder: pathlib.Path, encoder) -> Learning
         "motor_source": motor_source,
         "seed": config.seed,
     }
+    if config.randomisation.active:
+        provenance["randomisation"] = config.to_dict()["randomisation"]
     model = learning.train(
         Associator(**config.network_params()),
         stream,
@@ -223,6 +229,7 @@ SHARED_LEARNING_SECTIONS = (
     "learning",
     "network",
     "hierarchical",
+    "randomisation",
 )
 
 

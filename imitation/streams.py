@@ -27,7 +27,7 @@ from imitation import storage
 from imitation.results import package_versions
 from peoplebot_sim import directives
 from peoplebot_sim.task import ImitationTask, TaskConfig
-from perception.wallframe import world_to_wall
+from perception.wallframe import world_to_wall, world_to_wall_batch
 
 _QPOS_SIZE = {0: 7, 1: 4, 2: 1, 3: 1}  # free, ball, slide, hinge
 _DOF_SIZE = {0: 6, 1: 3, 2: 1, 3: 1}
@@ -57,6 +57,27 @@ class TeacherStream:
     def rows(self, index) -> TeacherStream:
         """Returns the steps ``index`` (indices, a slice or a bool mask) as a new stream."""
         return TeacherStream(*(getattr(self, f.name)[index] for f in dataclasses.fields(self)))
+
+    def with_world_poses(self, pose_world: np.ndarray) -> TeacherStream:
+        """Returns the same steps with other world poses ``(n, 3)`` (what a student saw); the
+        wall poses of the rows that differ are computed again (NaN rows stay NaN), the others
+        are kept as they are."""
+        pose_world = np.asarray(pose_world, dtype=np.float32)
+        if pose_world.shape != self.pose_world.shape:
+            raise ValueError(
+                f"pose_world must have the stream's shape {self.pose_world.shape}, got "
+                f"{pose_world.shape}"
+            )
+        changed = np.any(pose_world != self.pose_world, axis=1)
+        wall = self.pose_wall.copy()
+        finite = changed & np.all(np.isfinite(pose_world), axis=1)
+        wall[changed] = np.nan
+        if np.any(finite):
+            x, y, phi, _ = world_to_wall_batch(*pose_world[finite].astype(float).T)
+            wall[finite] = np.column_stack([x, y, phi])
+        return TeacherStream(
+            pose_world, wall, self.word.copy(), self.directive.copy(), self.motor_changed.copy()
+        )
 
     @classmethod
     def concatenate(cls, parts) -> TeacherStream:

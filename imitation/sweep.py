@@ -8,7 +8,8 @@ finished cell is skipped, an interrupted one resumes through its run folder, a c
 dies is retried by Ray, and every cell's results come back to the driver through Ray, so ``DIR``
 holds them even when the workers' disks are not shared. Cells that watch the same teacher streams
 share them through ``DIR/stream-cache/``. The summary: ``sweep.json``, ``sweep.md`` and a figure
-per metric in ``DIR/figures/``.
+per metric in ``DIR/figures/``. The Ray machinery is ``imitation.raytasks``, shared with ``peoplebot
+transfer``.
 """
 
 from __future__ import annotations
@@ -28,10 +29,8 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 import numpy as np
-import ray
-from tqdm import tqdm
 
-from imitation import page, report, reproduce, storage
+from imitation import page, raytasks, report, reproduce, storage
 from imitation.config import RunConfig
 from imitation.results import PAPER_TABLE_I, package_versions
 from imitation.runstate import differing_keys
@@ -39,8 +38,6 @@ from imitation.runstate import differing_keys
 #: The environment variable through which a test makes a cell's worker die once (its value: a
 #: marker file; the first attempt that finds it missing creates it and exits).
 DIE_ONCE_ENV = "PEOPLEBOT_SWEEP_DIE_ONCE"
-#: Attempts Ray makes at a cell whose worker process dies.
-MAX_RETRIES = 3
 #: The read-outs and students whose numbers the summary gathers.
 RECOGNITION_READOUTS = ("paper", "motor_weighted", "hierarchical", "hierarchical_over_time")
 STUDENTS = ("student", "student_hierarchical", "teacher")
@@ -130,13 +127,8 @@ def run_cell(config: dict, folder: str, stream_cache: str) -> dict:
         "results": results.to_json(),
         "results_md": (pathlib.Path(folder) / "results.md").read_text(),
         "host": socket.gethostname(),
-        "node": _node_id(),
+        "node": raytasks.node_id(),
     }
-
-
-def _node_id() -> str | None:
-    """Returns the Ray node this process runs on (None outside Ray)."""
-    return ray.get_runtime_context().get_node_id() if ray.is_initialized() else None
 
 
 @dataclasses.dataclass
@@ -208,58 +200,39 @@ def _version() -> str:
 
 
 def _run_on_ray(cells, out, outcomes, address, workers, progress) -> None:
-    address = address or os.environ.get("RAY_ADDRESS")
     env = {DIE_ONCE_ENV: os.environ[DIE_ONCE_ENV]} if DIE_ONCE_ENV in os.environ else {}
-    started_here = not ray.is_initialized()
-    if started_here:
-        options = {"include_dashboard": False, "log_to_driver": False}
-        if env:
-            options["runtime_env"] = {"env_vars": env}
-        if address:
-            ray.init(address=address, **options)
-        else:
-            ray.init(num_cpus=workers or os.cpu_count(), **options)
-    try:
-        task = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(run_cell)
-        cache = str(out / "stream-cache")
-        running = {}
-        for cell in cells:
-            # One process per cell: the cells themselves are the parallel work.
-            config = cell.config.replace({"workers": 1}).to_dict()
-            ref = task.remote(config, str(out / "cells" / cell.name), cache)
-            running[ref] = cell
-        bar = tqdm(total=len(cells), desc="sweep cells", unit="cell", disable=not progress)
-        failed = 0
-        while running:
-            done, _ = ray.wait(list(running), num_returns=1)
-            cell = running.pop(done[0])
-            try:
-                returned = ray.get(done[0])
-            except Exception as error:  # noqa: BLE001 (a cell's failure is reported, not raised)
-                failed += 1
-                outcomes[cell.name] = CellOutcome(cell, "failed", error=_cause(error))
-            else:
-                folder = out / "cells" / cell.name
-                folder.mkdir(parents=True, exist_ok=True)  # the driver's copy (disks not shared)
-                storage.write_json(folder / "results.json", returned["results"])
-                storage.write_text(folder / "results.md", returned["results_md"])
-                outcomes[cell.name] = CellOutcome(
-                    cell, "finished", returned["results"], node=returned["node"]
-                )
-            bar.update(1)
-            bar.set_postfix(
-                finished=bar.n - failed, running=len(running), failed=failed, refresh=True
-            )
-        bar.close()
-    finally:
-        if started_here:
-            ray.shutdown()
-
-
-def _cause(error: Exception) -> str:
-    """Returns the root cause of a Ray task's failure in one line."""
-    cause = getattr(error, "cause", None) or error
-    return " ".join(f"{type(cause).__name__}: {cause}".split())[:2000]
+    cache = str(out / "stream-cache")
+    # One process per cell: the cells themselves are the parallel work.
+    jobs = {
+        cell.name: (
+            cell.config.replace({"workers": 1}).to_dict(),
+            str(out / "cells" / cell.name),
+            cache,
+        )
+        for cell in cells
+    }
+    by_name = {cell.name: cell for cell in cells}
+    for outcome in raytasks.run_tasks(
+        run_cell,
+        jobs,
+        address=address,
+        workers=workers,
+        env=env,
+        progress=progress,
+        description="sweep cells",
+    ):
+        cell = by_name[outcome.key]
+        if outcome.error is not None:
+            outcomes[cell.name] = CellOutcome(cell, "failed", error=outcome.error)
+            continue
+        returned = outcome.value
+        folder = out / "cells" / cell.name
+        folder.mkdir(parents=True, exist_ok=True)  # the driver's copy (disks not shared)
+        storage.write_json(folder / "results.json", returned["results"])
+        storage.write_text(folder / "results.md", returned["results_md"])
+        outcomes[cell.name] = CellOutcome(
+            cell, "finished", returned["results"], node=returned["node"]
+        )
 
 
 # ---------------------------------------------------------------------------------------- summary

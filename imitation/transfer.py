@@ -7,7 +7,9 @@ trial settings and the perturbations of the level) whose two stages, ``recogniti
 the teacher, as the camera modes do, or the recorded test stream in the 'truth' mode) and
 ``performance`` (every student and the teacher's controller from the run's random starts), are
 checkpointed in its ``state.json``: an interrupted transfer resumes, and a finished cell is kept.
-The networks and the test stream are read from the source run, never copied. The report:
+The networks and the test stream are read from the source run, never copied. The cells run as Ray
+tasks (``imitation.raytasks``, the scheduler of ``peoplebot sweep``): a local Ray by default, or a
+cluster whose nodes see the source run and the transfer's folder at the same paths. The report:
 ``transfer.json``, ``transfer.md`` and ``figures/<family>.png``.
 """
 
@@ -15,7 +17,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import pathlib
+import time
 
 import matplotlib
 
@@ -23,7 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from associator import encoding, persistence  # noqa: E402
-from imitation import perturbations, recognition, storage, trials  # noqa: E402
+from imitation import perturbations, raytasks, recognition, storage, trials  # noqa: E402
 from imitation.config import RunConfig  # noqa: E402
 from imitation.results import WORDS, package_versions  # noqa: E402
 from imitation.runstate import RunState  # noqa: E402
@@ -41,6 +45,29 @@ SUMMARY_VERSION = 1
 
 
 @dataclasses.dataclass(frozen=True)
+class Scale:
+    """How much a transfer measures where its options do not say: the families (None: every
+    family that acts in the vision mode, ``perturbations.acts_in``), the levels of each (0 and
+    ``perturbations.ANCHOR_LEVELS``: the anchor's and one past it), the trials per row and policy
+    (of the source's trial length) and the watched steps for recognition."""
+
+    families: tuple | None
+    trials: int
+    recognition_steps: int
+
+
+#: ``peoplebot transfer`` and ``peoplebot transfer --quick``; their timings: docs/transfer.md.
+SCALES = {
+    "default": Scale(families=None, trials=10, recognition_steps=3000),
+    "quick": Scale(
+        families=("pose_noise", "latency", "command_latency", "acceleration"),
+        trials=3,
+        recognition_steps=1500,
+    ),
+}
+
+
+@dataclasses.dataclass(frozen=True)
 class TransferCell:
     """One configuration to test: its folder name, the perturbation settings it sets (dotted
     keys under ``perturbations``) and its whole configuration."""
@@ -53,13 +80,15 @@ class TransferCell:
 @dataclasses.dataclass(frozen=True)
 class CellResult:
     """A cell's numbers: correct recognition per read-out and word (None: no steps of it seen),
-    the fraction of steps the teacher was seen, and success rates per policy and row with their
-    trial counts."""
+    the fraction of steps the teacher was seen, success rates per policy and row with their
+    trial counts, and the CPU seconds each stage took (in the process that ran it, with one
+    trial process: the cell's whole cost; empty for cells made before they were kept)."""
 
     recognition: dict
     seen_fraction: float
     performance: dict
     trials: dict
+    cpu_seconds: dict = dataclasses.field(default_factory=dict)
 
     def to_json(self) -> dict:
         return dataclasses.asdict(self)
@@ -69,10 +98,17 @@ class CellResult:
         return cls(**data)
 
 
-def parse_families(text: str | None) -> tuple[str, ...]:
-    """Returns the families of ``"latency,dropout"`` (None: all); ValueError listing them."""
+class CellsFailed(RuntimeError):
+    """Some cells of a transfer failed (the others are kept; a rerun resumes)."""
+
+
+def parse_families(text: str | None, mode: str | None = None) -> tuple[str, ...]:
+    """Returns the families of ``"latency,dropout"`` (None: every family, or with a vision
+    ``mode`` every family that acts in it); ValueError listing them."""
     if text is None:
-        return tuple(perturbations.FAMILIES)
+        return tuple(
+            f for f in perturbations.FAMILIES if mode is None or perturbations.acts_in(f, mode)
+        )
     names = tuple(name.strip() for name in text.split(",") if name.strip())
     for name in names:
         if name not in perturbations.FAMILIES:
@@ -84,14 +120,15 @@ def parse_families(text: str | None) -> tuple[str, ...]:
     return names
 
 
-def parse_levels(text: str | None) -> tuple[int, ...] | None:
-    """Returns the level indices of ``"0,2,3"`` (None: every level of each family)."""
-    if text is None:
-        return None
+def parse_levels(text: str | None) -> tuple[int, ...] | str | None:
+    """Returns the level indices of ``"0,2,3"``, ``"all"`` for every level of each family, or
+    None (the default: 0 and each family's ``perturbations.ANCHOR_LEVELS``)."""
+    if text is None or text == "all":
+        return text
     try:
         levels = tuple(int(v) for v in text.split(","))
     except ValueError:
-        raise ValueError(f"--levels {text!r} must be level numbers like 0,1,3") from None
+        raise ValueError(f"--levels {text!r} must be level numbers like 0,1,3, or all") from None
     if any(level < 0 for level in levels) or len(set(levels)) != len(levels):
         raise ValueError(f"--levels {text!r} must be distinct level numbers >= 0")
     return levels
@@ -138,11 +175,17 @@ def source_run(source) -> RunConfig:
 def plan(base: RunConfig, families, levels=None) -> tuple[list, list[TransferCell]]:
     """Returns ``(rows, cells)``: per family and chosen level ``(family, index, level)`` and the
     distinct cells to run (a level equal to the base's perturbations is the ``baseline`` cell).
-    ``base``'s own perturbations (a preset) stay under every level."""
+    ``levels``: indices, ``"all"``, or None (0 and the family's ``ANCHOR_LEVELS``). ``base``'s
+    own perturbations (a preset) stay under every level."""
     rows, cells = [], {}
     for family in families:
         grid = perturbations.FAMILIES[family]
-        chosen = range(len(grid)) if levels is None else [i for i in levels if i < len(grid)]
+        if levels is None:
+            chosen = (0, *perturbations.ANCHOR_LEVELS[family])
+        elif levels == "all":
+            chosen = range(len(grid))
+        else:
+            chosen = [i for i in levels if i < len(grid)]
         for index in chosen:
             level = grid[index]
             config = base.replace({f"perturbations.{k}": v for k, v in level.items()})
@@ -159,27 +202,80 @@ def cell_name(base: RunConfig, family: str, index: int) -> str:
     return "baseline" if config == base else f"{family}-{index}"
 
 
-def run_cell(
-    cell: TransferCell, source: pathlib.Path, folder: pathlib.Path, fresh: bool = False
-) -> CellResult:
-    """Runs (or resumes) one cell in ``folder`` with the networks and test stream of ``source``
-    (``fresh``: what an earlier run wrote there is removed first); returns its numbers."""
-    config = cell.config
-    state = RunState(folder, config.to_dict(), fresh=fresh)
+def finished_cell(cell: TransferCell, folder: pathlib.Path, fresh: bool = False):
+    """Returns the numbers of ``cell`` if ``folder`` holds it finished, else None after making
+    the folder ready to run it (``fresh``: what an earlier run wrote there is removed; a stage
+    whose files were lost is forgotten). ValueError in one line when the folder holds a cell of
+    other settings."""
+    state = RunState(folder, cell.config.to_dict(), fresh=fresh)
     try:
         if state.done("performance") and not state.intact("performance"):
             state.forget(["performance"])
-        if not state.done("recognition"):
-            state.finish("recognition", _recognition(config, source))
-        if not state.done("performance"):
-            rates = trials.success_rates(config, folder, networks_from=source)
-            state.finish(
-                "performance", _performance_json(rates), [folder / "performance_trials.json"]
-            )
-        rec, perf = state.result("recognition"), state.result("performance")
-        return CellResult(rec["recognition"], rec["seen_fraction"], perf["rates"], perf["trials"])
+        if state.done("recognition") and state.done("performance"):
+            return _cell_result(state)
+        return None
     finally:
         state.close()
+
+
+def run_cell(config: dict, source: str, folder: str, students_only: bool = False) -> dict:
+    """Runs (or resumes) one cell of the configuration ``config`` (plain values) in ``folder``
+    with the networks and test stream of ``source`` (``students_only``: no teacher reference
+    trials, for a compared run); returns its numbers (``CellResult`` as JSON). The body of the
+    Ray task."""
+    config, source, folder = RunConfig.from_dict(config), pathlib.Path(source), pathlib.Path(folder)
+    policies = trials.policies_of(config)
+    if students_only:
+        policies = tuple(p for p in policies if p != "teacher")
+    state = RunState(folder, config.to_dict())
+    try:
+        if not state.done("recognition"):
+            wall, cpu = time.perf_counter(), time.process_time()
+            result = _recognition(config, source)
+            result["cpu_seconds"] = time.process_time() - cpu
+            state.finish("recognition", result, seconds=time.perf_counter() - wall)
+        if not state.done("performance"):
+            wall, cpu = time.perf_counter(), time.process_time()
+            rates = trials.success_rates(config, folder, networks_from=source, policies=policies)
+            result = {**_performance_json(rates), "cpu_seconds": time.process_time() - cpu}
+            state.finish(
+                "performance",
+                result,
+                [folder / "performance_trials.json"],
+                seconds=time.perf_counter() - wall,
+            )
+        return _cell_result(state).to_json()
+    finally:
+        state.close()
+
+
+def compared(result: CellResult, other: CellResult, label: str) -> CellResult:
+    """Returns ``result`` with the read-outs and students of ``other`` (a compared run's cell)
+    added under ``"<name> (<label>)"``."""
+
+    def tagged(mine: dict, theirs: dict) -> dict:
+        return {**mine, **{f"{name} ({label})": value for name, value in theirs.items()}}
+
+    return CellResult(
+        tagged(result.recognition, other.recognition),
+        result.seen_fraction,
+        tagged(result.performance, other.performance),
+        tagged(result.trials, other.trials),
+        {
+            stage: seconds + other.cpu_seconds.get(stage, 0.0)
+            for stage, seconds in result.cpu_seconds.items()
+        },
+    )
+
+
+def _cell_result(state: RunState) -> CellResult:
+    rec, perf = state.result("recognition"), state.result("performance")
+    cpu = {
+        stage: result["cpu_seconds"]
+        for stage, result in (("recognition", rec), ("performance", perf))
+        if "cpu_seconds" in result
+    }
+    return CellResult(rec["recognition"], rec["seen_fraction"], perf["rates"], perf["trials"], cpu)
 
 
 def _recognition(config: RunConfig, source: pathlib.Path) -> dict:
@@ -235,12 +331,12 @@ def _performance_json(rates: dict) -> dict:
     return out
 
 
-def envelope(levels: list, results: list[CellResult]) -> dict:
+def envelope(levels: list, results: list[CellResult], policies=POLICIES) -> dict:
     """Returns, per policy and word, the largest level (its label) up to which every level
     succeeds at least ``ENVELOPE_RATE`` of the time, or None when level 0 already fails;
     ``levels`` and ``results`` in the family's order."""
     out = {}
-    for policy in POLICIES:
+    for policy in policies:
         for word in WORDS:
             largest = None
             for level, result in zip(levels, results, strict=True):
@@ -263,35 +359,105 @@ def transfer(
     base_perturbations: perturbations.PerturbationConfig | None = None,
     changes: dict | None = None,
     fresh: bool = False,
+    address: str | None = None,
+    workers: int | None = None,
+    progress: bool = True,
+    compare=None,
+    compare_label: str | None = None,
 ) -> dict:
     """Tests the networks of the finished run in ``source`` under each family's levels (see the
     module notes) in ``out``; returns the summary (what ``transfer.json`` holds).
 
+    ``families``: default every family that acts in the vision mode; ``levels``: see ``plan``;
     ``vision``: the vision mode (default the source's); ``base_perturbations``: perturbations
     under every level (a preset; default none); ``changes``: other dotted config keys (trials,
-    trial seconds, vision test steps, workers); ``fresh``: every cell starts over (a cell made
-    with other settings is refused without it)."""
-    source, out = pathlib.Path(source), pathlib.Path(out)
-    base = source_run(source).replace(
-        {"videos.enabled": False, **({"vision.mode": vision} if vision else {}), **(changes or {})}
-    )
+    trial seconds, vision test steps; ``workers``: trial processes per cell, default 1);
+    ``fresh``: every cell starts over (a cell made with other settings is refused without it);
+    ``address``: a Ray cluster (else ``RAY_ADDRESS``, else a local Ray); ``workers``: cells at
+    once; ``compare``: another finished run whose students are tested in the same cells (in
+    ``OUT/compare/cells/``, without the teacher) and reported beside these as
+    ``"<policy> (<compare_label>)"`` (default label: 'randomised' for a run trained with domain
+    randomisation, else its folder's name)."""
+    source, out = pathlib.Path(source).resolve(), pathlib.Path(out).resolve()
+    settings = {
+        "videos.enabled": False,
+        "workers": 1,
+        **({"vision.mode": vision} if vision else {}),
+        **(changes or {}),
+    }
+    base = source_run(source).replace(settings)
     if base_perturbations is not None:
         base = dataclasses.replace(base, perturbations=base_perturbations)
-    families = parse_families(None) if families is None else tuple(families)
+    families = parse_families(None, base.vision.mode) if families is None else tuple(families)
     rows, cells = plan(base, families, levels)
-    (out / "cells").mkdir(parents=True, exist_ok=True)
+    # Every cell to run: (its key, the run whose networks it tests, its folder, the cell).
+    todo = [(cell.name, source, out / "cells" / cell.name, cell) for cell in cells]
+    other = None
+    if compare is not None:
+        compare = pathlib.Path(compare).resolve()
+        other = source_run(compare).replace({**settings, "vision.mode": base.vision.mode})
+        other = dataclasses.replace(other, perturbations=base.perturbations)
+        if compare_label is None:
+            compare_label = "randomised" if other.randomisation.active else compare.name
+        _, other_cells = plan(other, families, levels)
+        todo += [
+            (f"compare/{c.name}", compare, out / "compare" / "cells" / c.name, c)
+            for c in other_cells
+        ]
     results = {}
-    for k, cell in enumerate(cells):
-        print(f"[transfer] cell {k + 1}/{len(cells)}: {cell.name}")
-        results[cell.name] = run_cell(cell, source, out / "cells" / cell.name, fresh)
-    summary = _summary(source, base, families, rows, results)
+    for key, _, folder, cell in todo:
+        earlier = finished_cell(cell, folder, fresh)
+        if earlier is not None:
+            results[key] = earlier
+    jobs = {
+        key: (cell.config.to_dict(), str(run), str(folder), key.startswith("compare/"))
+        for key, run, folder, cell in todo
+        if key not in results
+    }
+    if progress:
+        print(f"[transfer] {len(todo)} cells: {len(results)} finished earlier, {len(jobs)} to run")
+    failed = []
+    if jobs:
+        for outcome in raytasks.run_tasks(
+            run_cell,
+            jobs,
+            address=address,
+            workers=workers,
+            cpus_per_task=base.workers,
+            progress=progress,
+            description="transfer cells",
+        ):
+            if outcome.error is not None:
+                failed.append(f"{outcome.key}: {outcome.error}")
+            else:
+                results[outcome.key] = CellResult.from_json(outcome.value)
+    if failed:
+        raise CellsFailed(
+            f"{len(failed)} of {len(todo)} transfer cells failed (rerun to resume the others): "
+            + "; ".join(failed)
+        )
+    policies = POLICIES
+    if other is not None:
+        students = [p for p in POLICIES if p != "teacher"]
+        policies = (*POLICIES, *(f"{p} ({compare_label})" for p in students))
+        results = {
+            cell.name: compared(results[cell.name], results[f"compare/{cell.name}"], compare_label)
+            for cell in cells
+        }
+    summary = _summary(source, base, families, rows, results, policies)
+    if other is not None:
+        summary["compare"] = {
+            "source": str(compare),
+            "label": compare_label,
+            "randomisation": other.to_dict().get("randomisation"),
+        }
     storage.write_json(out / "transfer.json", summary)
     storage.write_text(out / "transfer.md", markdown(summary))
     figures(summary, out / "figures")
     return summary
 
 
-def _summary(source, base: RunConfig, families, rows, results: dict) -> dict:
+def _summary(source, base: RunConfig, families, rows, results: dict, policies=POLICIES) -> dict:
     per_family = {}
     for family in families:
         mine = [(index, level) for f, index, level in rows if f == family]
@@ -307,15 +473,19 @@ def _summary(source, base: RunConfig, families, rows, results: dict) -> dict:
                 }
                 for (index, level), cell in zip(mine, cells, strict=True)
             ],
-            "envelope": envelope([level for _, level in mine], cells),
+            "envelope": envelope([level for _, level in mine], cells, policies),
         }
     return {
         "version": SUMMARY_VERSION,
         "source": str(source),
         "vision": base.vision.mode,
+        "randomisation": base.to_dict().get("randomisation"),
+        "policies": list(policies),
         "envelope_rate": ENVELOPE_RATE,
         "base_perturbations": base.to_dict()["perturbations"],
         "trials_per_row": base.performance.trials,
+        "cells": len(results),
+        "cpu_seconds": sum(sum(r.cpu_seconds.values()) for r in results.values()),
         "recognition_steps": base.vision.test_steps,
         "families": per_family,
         "versions": package_versions(),
@@ -326,8 +496,21 @@ def _pct(value) -> str:
     return "-" if value is None else f"{100 * value:.0f}%"
 
 
+def _policies(summary: dict) -> list[str]:
+    return summary.get("policies", list(POLICIES))
+
+
+def _over_time(recognition: dict, label: str | None = None) -> dict:
+    """Returns the read-out a table shows: the hierarchical associator over time, or the paper's
+    network without it (of the compared run: ``label``)."""
+    tag = f" ({label})" if label else ""
+    return recognition.get(f"hierarchical_over_time{tag}") or recognition.get(f"paper{tag}", {})
+
+
 def markdown(summary: dict) -> str:
     """Returns ``transfer.md``: the operating envelope, then per family its levels' numbers."""
+    policies = _policies(summary)
+    label = (summary.get("compare") or {}).get("label")
     lines = [
         f"# Transfer: {summary['source']} ({summary['vision']} vision)",
         "",
@@ -335,67 +518,112 @@ def markdown(summary: dict) -> str:
         f"{summary['recognition_steps']} watched steps (the hierarchical associator over time, "
         "or the paper's network without it); 'seen': steps the teacher's pose was known. "
         "Perturbations: docs/transfer.md.",
+    ]
+    if label:
+        lines += [
+            "",
+            f"Compared: the students of {summary['compare']['source']} as '<policy> ({label})' "
+            f"(its randomisation: {summary['compare']['randomisation'] or 'none'}).",
+        ]
+    lines += [
         "",
         f"## Operating envelope (largest level with success >= {100 * ENVELOPE_RATE:.0f}%)",
         "",
-        "| family | " + " | ".join(f"{p} {w}" for p in POLICIES for w in WORDS) + " |",
-        "|---|" + "---|" * (len(POLICIES) * len(WORDS)),
+        "| family | " + " | ".join(f"{p} {w}" for p in policies for w in WORDS) + " |",
+        "|---|" + "---|" * (len(policies) * len(WORDS)),
     ]
     for family, data in summary["families"].items():
         cells = [
-            str(data["envelope"].get(p, {}).get(w, "-") or "none") for p in POLICIES for w in WORDS
+            str(data["envelope"].get(p, {}).get(w, "-") or "none") for p in policies for w in WORDS
         ]
         lines.append(f"| {family} | " + " | ".join(cells) + " |")
+    recognitions = [None, label] if label else [None]
     for family, data in summary["families"].items():
         lines += [
             "",
             f"## {family}",
             "",
-            "| level | seen | recognition go / pick / lift | "
-            + " | ".join(f"{p} go / pick / lift" for p in POLICIES)
+            "| level | seen | "
+            + " | ".join(
+                f"recognition{f' ({tag})' if tag else ''} go / pick / lift" for tag in recognitions
+            )
+            + " | "
+            + " | ".join(f"{p} go / pick / lift" for p in policies)
             + " |",
-            "|---|---|---|" + "---|" * len(POLICIES),
+            "|---|---|" + "---|" * (len(recognitions) + len(policies)),
         ]
         for level in data["levels"]:
-            rec = level["recognition"].get("hierarchical_over_time") or level["recognition"].get(
-                "paper", {}
-            )
+            rec = [
+                " / ".join(_pct(_over_time(level["recognition"], tag).get(w)) for w in WORDS)
+                for tag in recognitions
+            ]
             perf = [
                 " / ".join(_pct(level["performance"].get(p, {}).get(w)) for w in WORDS)
-                for p in POLICIES
+                for p in policies
             ]
             lines.append(
                 f"| {level['label']} | {_pct(level['seen_fraction'])} | "
-                + " / ".join(_pct(rec.get(w)) for w in WORDS)
-                + " | "
-                + " | ".join(perf)
+                + " | ".join(rec + perf)
                 + " |"
             )
     return "\n".join(lines) + "\n"
 
 
+def wilson_interval(rate: float | None, trials: int | None) -> tuple[float, float]:
+    """Returns the 95% Wilson score interval of a success ``rate`` over ``trials`` (NaN, NaN
+    without trials)."""
+    if rate is None or not trials:
+        return float("nan"), float("nan")
+    z = 1.959964
+    centre = (rate + z * z / (2 * trials)) / (1 + z * z / trials)
+    half = (
+        z / (1 + z * z / trials) * math.sqrt(rate * (1 - rate) / trials + z * z / (4 * trials**2))
+    )
+    # It holds the rate; rounding aside (at a rate of 0 or 1).
+    return min(max(centre - half, 0.0), rate), max(min(centre + half, 1.0), rate)
+
+
 def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
-    """Draws ``<family>.png`` per family: success per policy and word (left) and correct
-    recognition per read-out and word (right) against the level; returns the paths."""
+    """Draws ``<family>.png`` per family: success per policy and word with its 95% Wilson
+    interval (left) and correct
+    recognition per read-out and word (right) against the level (a compared run's in their own
+    colours); returns the paths."""
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     styles = {"go": "-", "pick": "--", "lift": ":"}
     colours = {"student": "C0", "student_hierarchical": "C2", "teacher": "C7"}
     readout_colours = {"paper": "C0", "hierarchical": "C1", "hierarchical_over_time": "C2"}
+    label = (summary.get("compare") or {}).get("label")
+    if label:
+        colours |= {f"student ({label})": "C3", f"student_hierarchical ({label})": "C4"}
+        readout_colours |= {
+            f"paper ({label})": "C3",
+            f"hierarchical ({label})": "C5",
+            f"hierarchical_over_time ({label})": "C4",
+        }
     for family, data in summary["families"].items():
         levels = data["levels"]
         x = list(range(len(levels)))
         fig, (left, right) = plt.subplots(1, 2, figsize=(14, 4.5), sharey=True)
-        for policy in POLICIES:
+        for policy in _policies(summary):
             for word in WORDS:
                 y = [lv["performance"].get(policy, {}).get(word) for lv in levels]
                 if any(v is not None for v in y):
-                    left.plot(
+                    n = [lv["trials"].get(policy, {}).get(word) for lv in levels]
+                    bounds = [wilson_interval(v, k) for v, k in zip(y, n, strict=True)]
+                    rate = [float("nan") if v is None else v for v in y]
+                    left.errorbar(
                         x,
-                        [float("nan") if v is None else v for v in y],
-                        styles[word],
+                        rate,
+                        yerr=[
+                            [max(r - lo, 0.0) for r, (lo, _) in zip(rate, bounds, strict=True)],
+                            [max(hi - r, 0.0) for r, (_, hi) in zip(rate, bounds, strict=True)],
+                        ],
+                        fmt=styles[word],
                         marker="o",
-                        color=colours[policy],
+                        capsize=2,
+                        elinewidth=0.6,
+                        color=colours.get(policy, "C9"),
                         label=f"{policy} {word}",
                     )
         for readout, colour in readout_colours.items():

@@ -218,12 +218,16 @@ def stage_performance(config: RunConfig, folder: pathlib.Path) -> PerformanceRes
 
 
 def success_rates(
-    config: RunConfig, folder: pathlib.Path, networks_from: pathlib.Path | None = None
+    config: RunConfig,
+    folder: pathlib.Path,
+    networks_from: pathlib.Path | None = None,
+    policies: tuple | None = None,
 ) -> dict:
-    """Runs every trial of ``trial_plan`` with the networks of ``networks_from`` (default
-    ``folder``), writes them to ``folder``'s ``performance_trials.json`` and returns the success
-    rates, ``rates[row][policy]`` (None where a policy has no trials on a row)."""
-    policies = policies_of(config)
+    """Runs every trial of ``trial_plan`` of ``policies`` (default ``policies_of(config)``) with
+    the networks of ``networks_from`` (default ``folder``), writes them to ``folder``'s
+    ``performance_trials.json`` and returns the success rates, ``rates[row][policy]`` (None where
+    a policy has no trials on a row)."""
+    policies = policies_of(config) if policies is None else tuple(policies)
     source = folder if networks_from is None else pathlib.Path(networks_from)
     networks = {p: str(source / name) for p, name in STUDENT_NETWORKS.items() if p in policies}
     plan = trial_plan(config, policies)

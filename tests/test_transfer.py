@@ -4,11 +4,12 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
 # isort: split
 import json
+import math
 
 import pytest
 
 from associator import encoding
-from imitation import reproduce, transfer, trials
+from imitation import reproduce, transfer
 from imitation.cli import main
 from imitation.config import RunConfig
 from imitation.runstate import RunState
@@ -27,12 +28,33 @@ TINY = {
 }
 
 
+def _numbers(path):
+    """Returns a transfer.json without its CPU seconds (which differ from run to run)."""
+
+    def strip(value):
+        if isinstance(value, dict):
+            return {k: strip(v) for k, v in value.items() if k != "cpu_seconds"}
+        if isinstance(value, list):
+            return [strip(v) for v in value]
+        return value
+
+    return strip(json.loads(path.read_text()))
+
+
 @pytest.fixture(scope="module")
-def trained_run(tmp_path_factory):
-    """Returns a run folder with the streams and learning stages of a tiny run finished (what a
-    transfer reads)."""
-    folder = tmp_path_factory.mktemp("source")
-    config = RunConfig.quick().replace(TINY)
+def local_ray():
+    """One local Ray of two CPUs for the module's transfers (``raytasks.run_tasks`` uses a Ray that
+    is already started and leaves it running)."""
+    import ray
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    yield
+    ray.shutdown()
+
+
+def _trained(folder, config: RunConfig):
+    """Finishes the streams and learning stages of ``config`` in ``folder`` (what a transfer
+    reads); returns the folder."""
     state = RunState(folder, config.to_dict())
     streams = reproduce.stage_streams(config, folder)
     state.finish(
@@ -46,9 +68,20 @@ def trained_run(tmp_path_factory):
     return folder
 
 
-def test_transfer_reports_each_level_and_the_envelope_and_resumes(
-    trained_run, tmp_path, monkeypatch
-):
+@pytest.fixture(scope="module")
+def trained_run(tmp_path_factory):
+    """Returns a tiny run folder with its networks trained."""
+    return _trained(tmp_path_factory.mktemp("source"), RunConfig.quick().replace(TINY))
+
+
+@pytest.fixture(scope="module")
+def randomised_run(tmp_path_factory):
+    """Returns the same tiny run trained with the perception faults randomised."""
+    config = RunConfig.quick().replace({**TINY, "randomisation.families": ["pose_noise"]})
+    return _trained(tmp_path_factory.mktemp("randomised"), config)
+
+
+def test_transfer_reports_each_level_and_the_envelope_and_resumes(trained_run, tmp_path, local_ray):
     out = tmp_path / "transfer"
     argv = [
         "transfer",
@@ -60,6 +93,12 @@ def test_transfer_reports_each_level_and_the_envelope_and_resumes(
         "latency,command_latency",
         "--levels",
         "0,3",
+        "--trials",
+        "1",
+        "--vision-test-steps",
+        "50",
+        "--workers",
+        "2",
     ]
     assert main(argv) == 0
     summary = json.loads((out / "transfer.json").read_text())
@@ -87,23 +126,54 @@ def test_transfer_reports_each_level_and_the_envelope_and_resumes(
     text = (out / "transfer.md").read_text()
     assert "Operating envelope" in text and "latency_ms=200" in text
 
-    # A rerun keeps every finished cell; a cell whose trials file was lost runs its trials again.
-    before = (out / "transfer.json").read_text()
-    (out / "cells" / "latency-3" / "performance_trials.json").unlink()
-    calls = []
-    original = trials.success_rates
-    monkeypatch.setattr(
-        trials, "success_rates", lambda *a, **k: calls.append(a[1].name) or original(*a, **k)
-    )
+    # A rerun keeps every finished cell; a cell whose trials file was lost runs its trials again
+    # (on Ray: the cells ran there, through the same machinery as peoplebot sweep's).
+    before = _numbers(out / "transfer.json")
+    kept = out / "cells" / "baseline" / "performance_trials.json"
+    kept_mtime = kept.stat().st_mtime_ns
+    lost = out / "cells" / "latency-3" / "performance_trials.json"
+    lost.unlink()
     assert main(argv) == 0
-    assert calls == ["latency-3"]
-    assert (out / "transfer.json").read_text() == before
+    assert lost.is_file() and kept.stat().st_mtime_ns == kept_mtime
+    assert _numbers(out / "transfer.json") == before
 
     # Other settings in a finished cell are refused in one line; --fresh starts over.
-    assert main([*argv, "--trials", "2"]) == 2
-    assert main([*argv, "--trials", "2", "--fresh"]) == 0
+    trials_2 = [*argv, "--trials", "2"]  # the last --trials counts
+    assert main(trials_2) == 2
+    assert main([*trials_2, "--fresh"]) == 0
     again = json.loads((out / "transfer.json").read_text())
     assert again["families"]["latency"]["levels"][0]["trials"]["teacher"]["lift"] == 2
+
+
+def test_a_compared_run_appears_in_the_same_report(
+    trained_run, randomised_run, tmp_path, local_ray
+):
+    out = tmp_path / "transfer"
+    argv = ["transfer", "--reuse-from", str(trained_run), "--compare", str(randomised_run)]
+    argv += ["--out", str(out), "--families", "pose_noise", "--levels", "0,4", "--trials", "1"]
+    assert main([*argv, "--vision-test-steps", "50"]) == 0
+    summary = json.loads((out / "transfer.json").read_text())
+    assert summary["compare"]["label"] == "randomised"
+    assert summary["compare"]["randomisation"]["families"] == ["pose_noise"]
+    assert summary["policies"] == [
+        "student",
+        "student_hierarchical",
+        "teacher",
+        "student (randomised)",
+        "student_hierarchical (randomised)",
+    ]
+    level = summary["families"]["pose_noise"]["levels"][1]
+    assert set(level["performance"]) == {"student", "teacher", "student (randomised)"}
+    assert level["trials"]["student (randomised)"]["go"] == 1
+    assert set(level["recognition"]) == {"paper", "paper (randomised)"}
+    assert "student (randomised)" in summary["families"]["pose_noise"]["envelope"]
+    # The compared run's cells hold its students only; the teacher runs once, in the main cells.
+    trials = json.loads(
+        (out / "compare" / "cells" / "pose_noise-4" / "performance_trials.json").read_text()
+    )
+    assert {t["policy"] for t in trials} == {"student"}
+    text = (out / "transfer.md").read_text()
+    assert "student (randomised) go" in text and "recognition (randomised)" in text
 
 
 def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
@@ -113,3 +183,52 @@ def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
         transfer.parse_families("nope")
     with pytest.raises(ValueError, match="--levels"):
         transfer.parse_levels("a,1")
+
+
+def test_the_figures_intervals_are_wilsons():
+    assert transfer.wilson_interval(0.5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
+    assert transfer.wilson_interval(1.0, 3) == pytest.approx((0.4385, 1.0), abs=1e-4)
+    for trials in range(1, 60):  # it holds the rate, rounding included
+        for k in range(trials + 1):
+            low, high = transfer.wilson_interval(k / trials, trials)
+            assert low <= k / trials <= high
+    assert all(math.isnan(v) for v in transfer.wilson_interval(None, 0))
+
+
+def test_the_default_grid_is_what_the_help_says():
+    from imitation import perturbations
+
+    counts = [
+        sum(perturbations.acts_in(f, mode) for f in perturbations.FAMILIES)
+        for mode in ("truth", "overhead", "head")
+    ]
+    assert counts == [10, 21, 22]  # the numbers in --families's help
+    assert set(perturbations.ANCHOR_LEVELS) == set(perturbations.FAMILIES)
+    for family, (anchor, past) in perturbations.ANCHOR_LEVELS.items():
+        assert 0 < anchor < past < len(perturbations.FAMILIES[family]), family
+    base = RunConfig.quick()
+    rows, cells = transfer.plan(base, transfer.parse_families(None, "truth"))
+    assert len(cells) == 21 and len(rows) == 30  # --help: 21 cells in the 'truth' mode
+    quick = transfer.SCALES["quick"]
+    assert len(transfer.plan(base, quick.families)[1]) == 9
+    assert (transfer.SCALES["default"].trials, quick.trials) == (10, 3)
+
+
+def test_ray_tasks_report_each_outcome_and_a_failure_in_one_line(local_ray):
+    from imitation import raytasks
+
+    def _square(x):  # defined here, so Ray sends it by value (workers cannot import tests)
+        if x < 0:
+            raise ValueError(f"negative: {x}")
+        return x * x
+
+    outcomes = {
+        o.key: o
+        for o in raytasks.run_tasks(
+            _square, {"a": (2,), "b": (-1,), "c": (3,)}, workers=1, progress=False
+        )
+    }
+    assert (outcomes["a"].value, outcomes["c"].value) == (4, 9)
+    assert outcomes["b"].value is None and outcomes["b"].error == "ValueError: negative: -1"
+    with pytest.raises(ValueError, match="workers must be at least 1"):
+        next(raytasks.run_tasks(_square, {}, workers=0))
