@@ -193,9 +193,10 @@ class TrialRecord:
     """One performance trial: its row, policy, start (world x m, y m, yaw rad) and the wall its
     success refers to; the verdict, duration, whether the robot touched anything, where it ended,
     the median error of the student's own-pose estimate (cm; None when it had none), the
-    verdict's reason in one line, the own-pose error's 95th percentile (cm) and the median of
+    verdict's reason in one line, the own-pose error's 95th percentile (cm), the median of
     the estimate's 95% position ellipse's semi-major axis (cm; None without a covariance: the
-    landmark filter's only)."""
+    landmark filter's only) and the own heading's absolute error, median and 95th percentile
+    (deg)."""
 
     row: str
     policy: str
@@ -210,6 +211,8 @@ class TrialRecord:
     reason: str
     own_pose_error_cm_p95: float | None = None
     own_position_ellipse95_cm_median: float | None = None
+    own_heading_error_deg_median: float | None = None
+    own_heading_error_deg_p95: float | None = None
 
     def to_json(self) -> dict:
         out = dataclasses.asdict(self)

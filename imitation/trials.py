@@ -183,6 +183,9 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
         truth_then = np.vstack([np.asarray(item.start, dtype=float)[None, :], result.trace[:-1]])
         valid = np.all(np.isfinite(est), axis=1)
         own_error = np.hypot(*(est[valid, :2] - truth_then[valid, :2]).T)
+        heading_error = np.degrees(
+            np.abs(np.angle(np.exp(1j * (est[valid, 2] - truth_then[valid, 2]))))
+        )
         ellipse = ellipse95_semi_major_m(result.estimate_covariance)
         out.append(
             TrialRecord(
@@ -204,6 +207,12 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
                 else None,
                 own_position_ellipse95_cm_median=float(np.median(ellipse) * 100)
                 if ellipse.size
+                else None,
+                own_heading_error_deg_median=float(np.median(heading_error))
+                if heading_error.size
+                else None,
+                own_heading_error_deg_p95=float(np.percentile(heading_error, 95))
+                if heading_error.size
                 else None,
             )
         )

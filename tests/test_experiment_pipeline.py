@@ -190,6 +190,7 @@ def test_performance_trials_follow_the_plan(run_folder):
         assert len(r.end_pose) == 3 and np.all(np.isfinite(r.end_pose))
         # In the truth mode every policy acts on its true pose: no own-pose error.
         assert r.own_pose_error_cm_median == 0.0, (r.policy, r.own_pose_error_cm_median)
+        assert r.own_heading_error_deg_median == r.own_heading_error_deg_p95 == 0.0, r
 
 
 def test_results_md_has_the_tables(run_folder):
@@ -514,6 +515,11 @@ def test_reuse_from_takes_the_networks_for_a_camera_run(run_folder, tmp_path):
         "Recognition through the overhead camera"
         in (tmp_path / "overhead" / "results.md").read_text()
     )
+    # The students act on the tracker's estimate of their own pose: small errors, never none.
+    records = json.loads((tmp_path / "overhead" / "performance_trials.json").read_text())
+    for r in (TrialRecord.from_json(r) for r in records if r["policy"] != "teacher"):
+        assert 0 < r.own_pose_error_cm_p95 < 5.0, r
+        assert 0 < r.own_heading_error_deg_p95 < 5.0, r
     damaged = tmp_path / "damaged"
     shutil.copytree(folder, damaged)
     (damaged / "network.npz").write_bytes((damaged / "network.npz").read_bytes()[:-9])
