@@ -332,6 +332,7 @@ def sequence_timing(
             row["glances"] = glances
         out[name] = row
     if "head" in out and "head_landmarks" in out:
+        rows = (("odometry", "head"), ("landmarks", "head_landmarks"))
         out["glance_cost"] = {
             key: {method: out[row][key] for method, row in rows}
             for key in (
@@ -339,7 +340,6 @@ def sequence_timing(
                 "tracked_teacher_position_error_cm",
                 "tracked_teacher_heading_error_deg",
             )
-            for rows in [(("odometry", "head"), ("landmarks", "head_landmarks"))]
         }
         out["glance_cost"]["glances"] = out["head_landmarks"]["glances"]
     return out

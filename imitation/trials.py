@@ -17,6 +17,7 @@ from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
 from peoplebot_sim.task import load
 from perception.localisation import CHI2_2DOF_95
+from perception.pose import wrap_radians
 
 #: Student policies and the network file each drives with (in the run folder).
 STUDENT_NETWORKS = {"student": "network.npz", "student_hierarchical": "hierarchical.npz"}
@@ -170,6 +171,15 @@ def ellipse95_semi_major_m(covariances) -> np.ndarray:
     return np.sqrt(CHI2_2DOF_95 * np.clip(largest, 0.0, None))
 
 
+def _p95(values: np.ndarray) -> float:
+    return np.percentile(values, 95)
+
+
+def _statistic(function, values: np.ndarray) -> float | None:
+    """Returns ``function(values)`` as a float, or None when there are no values."""
+    return float(function(values)) if values.size else None
+
+
 def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file: str) -> list:
     models, env, calibration = _worker_setup(config, networks)
     out = []
@@ -182,11 +192,9 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
         est = result.estimate
         truth_then = np.vstack([np.asarray(item.start, dtype=float)[None, :], result.trace[:-1]])
         valid = np.all(np.isfinite(est), axis=1)
-        own_error = np.hypot(*(est[valid, :2] - truth_then[valid, :2]).T)
-        heading_error = np.degrees(
-            np.abs(np.angle(np.exp(1j * (est[valid, 2] - truth_then[valid, 2]))))
-        )
-        ellipse = ellipse95_semi_major_m(result.estimate_covariance)
+        own_error_cm = 100 * np.hypot(*(est[valid, :2] - truth_then[valid, :2]).T)
+        heading_error_deg = np.degrees(np.abs(wrap_radians(est[valid, 2] - truth_then[valid, 2])))
+        ellipse_cm = 100 * ellipse95_semi_major_m(result.estimate_covariance)
         out.append(
             TrialRecord(
                 row=item.row,
@@ -198,22 +206,12 @@ def _trials_worker(plan: list, config: RunConfig, networks: dict, progress_file:
                 seconds=result.seconds,
                 touched=bool(result.touched),
                 end_pose=tuple(float(v) for v in result.trace[-1]),
-                own_pose_error_cm_median=float(np.median(own_error) * 100)
-                if own_error.size
-                else None,
+                own_pose_error_cm_median=_statistic(np.median, own_error_cm),
                 reason=result.reason,
-                own_pose_error_cm_p95=float(np.percentile(own_error, 95) * 100)
-                if own_error.size
-                else None,
-                own_position_ellipse95_cm_median=float(np.median(ellipse) * 100)
-                if ellipse.size
-                else None,
-                own_heading_error_deg_median=float(np.median(heading_error))
-                if heading_error.size
-                else None,
-                own_heading_error_deg_p95=float(np.percentile(heading_error, 95))
-                if heading_error.size
-                else None,
+                own_pose_error_cm_p95=_statistic(_p95, own_error_cm),
+                own_position_ellipse95_cm_median=_statistic(np.median, ellipse_cm),
+                own_heading_error_deg_median=_statistic(np.median, heading_error_deg),
+                own_heading_error_deg_p95=_statistic(_p95, heading_error_deg),
             )
         )
         pathlib.Path(progress_file).write_text(str(k + 1))

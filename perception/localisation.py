@@ -54,7 +54,7 @@ import math
 import numpy as np
 
 from perception.landmarks import LandmarkFix, LandmarkLocator
-from perception.odometry import DriveGeometry
+from perception.odometry import DriveGeometry, arc_chord
 from perception.pose import check_planar_pose, wrap_radians
 
 LOCALISATION_STATUSES = ("searching", "tracking")
@@ -332,9 +332,7 @@ class SelfLocaliser:
         if self.contact_:
             distance_m *= c.contact_distance_scale
             turn_rad *= c.contact_turn_scale
-        heading = self.pose_[2] + 0.5 * turn_rad
-        half = 0.5 * turn_rad
-        chord = distance_m * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
+        chord, heading = arc_chord(self.pose_[2], distance_m, turn_rad)
         cos_h, sin_h = math.cos(heading), math.sin(heading)
         f = np.array([[1.0, 0.0, -chord * sin_h], [0.0, 1.0, chord * cos_h], [0.0, 0.0, 1.0]])
         g = np.array([[cos_h, -0.5 * chord * sin_h], [sin_h, 0.5 * chord * cos_h], [0.0, 1.0]])
@@ -375,9 +373,7 @@ class SelfLocaliser:
             return False
         if distance_m == 0.0 and turn_rad == 0.0:
             return False
-        half = 0.5 * turn_rad
-        chord = distance_m * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
-        heading = self.pose_[2] + half
+        chord, heading = arc_chord(self.pose_[2], distance_m, turn_rad)
         after = self.pose_ + np.array(
             [chord * math.cos(heading), chord * math.sin(heading), turn_rad]
         )

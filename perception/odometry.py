@@ -67,12 +67,16 @@ class WheelOdometry:
         self._last = (float(left_angle), float(right_angle))
         arc = 0.5 * (d_left + d_right)
         turn = (d_right - d_left) / self.geometry.track_m
-        # Exact for a constant-curvature arc: its chord points along the mean heading and is
-        # shorter than the arc by sin(turn / 2) / (turn / 2).
-        half = 0.5 * turn
-        chord = arc * (math.sin(half) / half if abs(half) > 1e-9 else 1.0)
-        heading = self.pose[2] + half
+        chord, heading = arc_chord(self.pose[2], arc, turn)
         self.pose[0] += chord * math.cos(heading)
         self.pose[1] += chord * math.sin(heading)
         self.pose[2] = (self.pose[2] + turn + math.pi) % (2 * math.pi) - math.pi
         return self.pose.copy()
+
+
+def arc_chord(yaw_rad: float, distance_m: float, turn_rad: float) -> tuple[float, float]:
+    """Returns ``(chord_m, heading_rad)`` of a step from heading ``yaw_rad`` along an arc of
+    ``distance_m`` turning ``turn_rad``: exact for a constant curvature, the chord points along
+    the mean heading and is shorter than the arc by sin(turn / 2) / (turn / 2)."""
+    half = 0.5 * turn_rad
+    return distance_m * (math.sin(half) / half if abs(half) > 1e-9 else 1.0), yaw_rad + half
