@@ -34,7 +34,9 @@ from associator.encoding import DIRECTIVES
 from perception.wallframe import ArenaGeometry, world_to_wall, wrap_degrees
 
 #: How the teacher's 'pick' reaches the dock (``TeacherConfig.docking``).
-DOCKINGS = ("lane", "phased")
+DOCKINGS = ("funnel", "lane", "phased")
+#: How the docked teacher makes its final alignment (``TeacherConfig.settle``).
+SETTLES = ("align", "pattern")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -63,7 +65,11 @@ class TeacherConfig:
       lateral_tol_m, heading_tol_deg, dock_heading_tol_deg: docking tolerances.
       approach_lead_m, approach_heading_tol_deg: the final approach steers at a point this far
         beyond the docked pose on its centre line, within this heading tolerance.
-      settle_pattern: the docked robot's final alignment, small turns in place that cancel out.
+      settle_pattern: the docked robot's final alignment, small turns in place that cancel out;
+        with ``settle = "align"`` only its length counts.
+      settle: 'pattern' turns as ``settle_pattern`` says whatever the heading; 'align' turns
+        towards square to the table at each step (so the turns alternate about square, and a
+        robot docked askew is shown turning back).
       docking: how 'pick' reaches the dock: 'phased' (line up at the pre-dock point, face the
         table, drive in: phases latched once entered) or 'lane' (a function of the pose: inside
         the docking lane it drives in; outside it lines up at the pre-dock point, backing up to it
@@ -71,6 +77,15 @@ class TeacherConfig:
       lane_ratio: the docking lane's half-width over the distance to the approach's aim point
         (``approach_lead_m`` beyond the dock): steering at that point keeps this ratio, so a robot
         inside the lane stays inside it as it drives in.
+      funnel_lookahead_m: the 'funnel' docking steers at the centre line this far ahead of the
+        robot's depth, or at the dock when it is nearer: a pure pursuit whose lateral offset
+        shrinks by e per lookahead driven.
+      funnel_tolerance_m: the 'funnel' has arrived when its lateral offset at the dock's depth is
+        at most this.
+      funnel_miss_m: each 'funnel' docking first pursues a line beside the centre line, its
+        offset drawn uniformly within +- this, until its depth in front of the dock is below a
+        depth drawn uniformly within (0, ``funnel_lookahead_m``); then it steers at the dock,
+        so the demonstrations show how to correct a sideways miss near the table (0: never).
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
       slip_rate_per_s: disturbances per second of each behaviour (a Poisson rate; 0: none). In
@@ -97,9 +112,13 @@ class TeacherConfig:
     lateral_tol_m: float = 0.03
     approach_lead_m: float = 0.5
     settle_pattern: tuple = ("turn_left", "turn_right", "turn_right", "turn_left") * 2
+    settle: str = "align"
     approach_heading_tol_deg: float = 4.0
-    docking: str = "lane"
+    docking: str = "funnel"
     lane_ratio: float = 0.16
+    funnel_lookahead_m: float = 0.3
+    funnel_tolerance_m: float = 0.05
+    funnel_miss_m: float = 0.25
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
     lift_backoff_m: float = 0.9
@@ -127,6 +146,9 @@ class TeacherConfig:
                 "teacher.pick_trigger_probability must be in (0, 1], got "
                 f"{self.pick_trigger_probability!r}"
             )
+        for name in ("funnel_lookahead_m", "funnel_tolerance_m"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"teacher.{name} must be > 0 m, got {getattr(self, name)!r}")
         for name in ("slip_seconds", "pick_trigger_x_m"):
             _check_range(f"teacher.{name}", getattr(self, name))
         rates = self.slip_rate_per_s
@@ -140,6 +162,10 @@ class TeacherConfig:
             raise ValueError(
                 "teacher.slip_rate_per_s must give a rate >= 0 per second for go, pick and lift, "
                 f"got {rates!r}"
+            )
+        if self.settle not in SETTLES:
+            raise ValueError(
+                f"unknown teacher.settle {self.settle!r}; allowed: {', '.join(SETTLES)}"
             )
         if self.docking not in DOCKINGS:
             raise ValueError(
@@ -160,9 +186,11 @@ class TeacherConfig:
             )
 
     def undisturbed(self) -> TeacherConfig:
-        """Returns these settings without disturbances: the controller alone, as the reference
-        row performs."""
-        return dataclasses.replace(self, slip_rate_per_s={"go": 0.0, "pick": 0.0, "lift": 0.0})
+        """Returns these settings without disturbances or drawn misses: the controller alone, as
+        the reference row performs."""
+        return dataclasses.replace(
+            self, slip_rate_per_s={"go": 0.0, "pick": 0.0, "lift": 0.0}, funnel_miss_m=0.0
+        )
 
 
 def _check_range(name: str, low_high) -> None:
@@ -217,6 +245,7 @@ class Teacher:
         self.executed = "forward"
         self._slip_steps = 0
         self._slip_directive = "forward"
+        self._miss_m = self._miss_depth_m = 0.0
         self.time_s = 0.0
         self.cycles_completed = 0
         self.events: list[WatchdogEvent] = []
@@ -245,6 +274,8 @@ class Teacher:
         "_trigger_x_m",
         "_in_trigger_region",
         "_pick_on_entry",
+        "_miss_m",
+        "_miss_depth_m",
     )
 
     def get_state(self) -> dict:
@@ -292,6 +323,12 @@ class Teacher:
         if word == "go":
             self._trigger_x_m = float(self._rng.uniform(*self.config.pick_trigger_x_m))
             self._in_trigger_region = self._pick_on_entry = False
+        if word == "pick":
+            c = self.config
+            self._miss_m = self._miss_depth_m = 0.0
+            if c.docking == "funnel" and c.funnel_miss_m > 0:
+                self._miss_m = float(self._rng.uniform(-c.funnel_miss_m, c.funnel_miss_m))
+                self._miss_depth_m = float(self._rng.uniform(0.0, c.funnel_lookahead_m))
         self.word = word
         self.phase = phase
         self._behaviour_start_s = getattr(self, "time_s", 0.0)
@@ -437,8 +474,9 @@ class Teacher:
         c = self.config
         dock_x, dock_y, dock_yaw = self.dock_pose
         heading_error = wrap_degrees(math.degrees(dock_yaw - yaw))
-        if c.docking == "lane" and self.phase in ("line_up", "approach"):
-            directive = self._lane_docking(x, y, yaw)
+        if c.docking in ("lane", "funnel") and self.phase in ("line_up", "approach", "back_up"):
+            docking = self._lane_docking if c.docking == "lane" else self._funnel_docking
+            directive = docking(x, y, yaw)
             if directive is not None:
                 return directive
             self.phase = "square"
@@ -480,6 +518,8 @@ class Teacher:
         # left and right turns"); then the pick is done.
         if self._settle_steps < len(c.settle_pattern):
             directive = c.settle_pattern[self._settle_steps]
+            if c.settle == "align" and heading_error != 0:
+                directive = self._turn_towards(heading_error)
             self._settle_steps += 1
             return directive
         self._enter("lift", "back")
@@ -523,6 +563,36 @@ class Teacher:
         if abs(error) > c.heading_tol_deg:
             return self._turn_towards(error)
         return "backward"
+
+    def _funnel_docking(self, x, y, yaw) -> str | None:
+        """Returns the 'funnel' docking's directive at a pose, or None once it stands at the dock
+        (at its depth, its lateral offset within ``funnel_tolerance_m``; then it squares up and
+        settles).
+
+        It steers at the point of the centre line ``funnel_lookahead_m`` ahead of its depth, or at
+        the dock when that is nearer (a pure pursuit: the offset shrinks as exp(-depth driven /
+        lookahead)); off the centre line near the table it drives along the table to the dock. The
+        heading it wants changes smoothly with the pose; only a robot nearer the table than the
+        dock backs out, square to it."""
+        c = self.config
+        dock_x, dock_y, _ = self.dock_pose
+        lateral, depth = x - dock_x, dock_y - y
+        if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m:
+            return None
+        if depth < -0.015:
+            self.phase = "back_up"
+            error = wrap_degrees(math.degrees(math.pi / 2 - yaw))
+            if abs(error) > c.heading_tol_deg:
+                return self._turn_towards(error)
+            return "backward"
+        self.phase = "approach"
+        if depth > self._miss_depth_m:  # the drawn miss: pursue a line beside the centre line
+            lateral -= self._miss_m
+        aim = math.atan2(min(c.funnel_lookahead_m, max(depth, 0.0)), -lateral)
+        error = wrap_degrees(math.degrees(aim - yaw))
+        if abs(error) > c.approach_heading_tol_deg:
+            return self._turn_towards(error)
+        return "forward"
 
     def _lift(self, x, y, yaw, student):
         c = self.config

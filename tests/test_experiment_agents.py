@@ -16,6 +16,7 @@ from imitation.observers import Calibration, StudentVision
 from imitation.performance import StudentAgent, TeacherAgent, make_action
 from imitation.recognition import watch_with_vision
 from peoplebot_sim import task
+from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall
 
 ARENA = ArenaGeometry()
@@ -236,7 +237,9 @@ def test_lane_docking_backs_up_from_near_the_table_and_docks(student_env, latera
     dock; on the lane it drives in without backing up."""
 
     def run(pose):
-        agent = TeacherAgent("pick", student_env.action_spec(), rng=0)
+        agent = TeacherAgent(
+            "pick", student_env.action_spec(), rng=0, teacher_config=TeacherConfig(docking="lane")
+        )
         directives = []
         result = performance.run_trial(
             student_env,
@@ -256,6 +259,105 @@ def test_lane_docking_backs_up_from_near_the_table_and_docks(student_env, latera
     result, directives = run(WallPose(1.4, 0.05, 0.0, "top"))
     assert result.success, result.reason
     assert "backward" not in directives
+
+
+def _teacher_pick(env, pose: WallPose, teacher_config: TeacherConfig):
+    """Runs the teacher's 'pick' from a wall-frame pose for a whole trial; returns the trial, its
+    directives and phases."""
+    agent = TeacherAgent("pick", env.action_spec(), rng=0, teacher_config=teacher_config)
+    steps = []
+    result = performance.run_trial(
+        env,
+        agent,
+        "pick",
+        wall_to_world(pose),
+        "top",
+        stop_on_success=False,
+        frame_callback=lambda e, a: steps.append((a.directive, a.controller.phase)),
+    )
+    return result, steps
+
+
+@pytest.mark.parametrize("lateral_m", [-0.6, 0.6])
+def test_funnel_docking_pursues_the_centre_line_and_docks_along_the_table(student_env, lateral_m):
+    """The funnel docking never backs up from a trial start: near the table and far off the centre
+    line it turns along the table and drives to the dock, the table always on its side or ahead;
+    from farther out its offset shrinks as it drives in (pursuit). Both end centred and square."""
+    config = TeacherConfig(docking="funnel")
+    for start in (
+        WallPose(1.05, lateral_m, 0.0, "top"),
+        WallPose(1.55, lateral_m / 2, 20.0, "top"),
+    ):
+        result, steps = _teacher_pick(student_env, start, config)
+        assert result.success, result.reason
+        assert "backward" not in [d for d, _ in steps]
+        walls = [world_to_wall(*pose, wall="top") for pose in result.trace]
+        assert max(abs(w.phi_deg) for w in walls) < 100.0
+        assert max(abs(w.y_m) for w in walls) <= abs(start.y_m) + 0.02
+        end = walls[-1]
+        assert abs(end.y_m) <= config.funnel_tolerance_m + 0.01
+        assert abs(end.x_m - config.dock_x_m) < 0.08 and abs(end.phi_deg) < 8.0
+
+
+def test_funnel_docking_backs_out_square_from_nearer_the_table_than_the_dock():
+    """Nearer the table than the dock the funnel docking backs out square to it; at the dock,
+    centred, it is done (None) and the teacher squares up and settles."""
+    teacher = Teacher(TeacherConfig(docking="funnel"), rng=0)
+    dock_x, dock_y, _ = teacher.dock_pose
+    teacher.begin("pick")
+    assert teacher._funnel_docking(dock_x + 0.1, dock_y + 0.05, np.pi / 2) == "backward"
+    assert teacher._funnel_docking(dock_x + 0.1, dock_y + 0.05, np.pi / 2 + 0.5) == "turn_right"
+    assert teacher._funnel_docking(dock_x + 0.02, dock_y - 0.01, np.pi / 2) is None
+    # Beside the dock at its depth: along the table, towards the centre line.
+    assert teacher._funnel_docking(dock_x + 0.2, dock_y, np.pi) == "forward"
+    assert teacher._funnel_docking(dock_x - 0.2, dock_y, 0.0) == "forward"
+
+
+def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
+    """Each 'pick' draws a miss: beyond its drawn depth the teacher pursues the line beside the
+    centre line, nearer the table the dock; the reference's controller (``undisturbed``) never
+    misses."""
+    config = TeacherConfig(docking="funnel", funnel_miss_m=0.25)
+    teacher = Teacher(config, rng=3)
+    dock_x, dock_y, _ = teacher.dock_pose
+    misses = []
+    for _ in range(200):
+        teacher.begin("pick")
+        misses.append((teacher._miss_m, teacher._miss_depth_m))
+    miss, depth = np.array(misses).T
+    assert np.all(np.abs(miss) <= 0.25) and miss.min() < -0.2 and miss.max() > 0.2
+    assert np.all((depth >= 0) & (depth <= config.funnel_lookahead_m))
+    teacher._miss_m, teacher._miss_depth_m = 0.2, 0.1
+    # Far out: straight on along the miss line; on the centre line it turns towards the miss line.
+    assert teacher._funnel_docking(dock_x + 0.2, dock_y - 0.6, np.pi / 2) == "forward"
+    assert teacher._funnel_docking(dock_x, dock_y - 0.6, np.pi / 2) == "turn_right"
+    # Nearer than the drawn depth: at the dock.
+    assert teacher._funnel_docking(dock_x + 0.2, dock_y - 0.05, np.pi / 2) == "turn_left"
+    assert config.undisturbed().funnel_miss_m == 0.0
+    quiet = Teacher(config.undisturbed(), rng=3)
+    quiet.begin("pick")
+    assert quiet._miss_m == 0.0
+
+
+@pytest.mark.parametrize("settle", ["align", "pattern"])
+def test_settling_turns_towards_square_or_follows_the_pattern(settle):
+    """Docked askew, the 'align' settle turns back towards square at every step (alternating about
+    it once square); the 'pattern' settle turns as its pattern says whatever the heading."""
+    config = TeacherConfig(settle=settle, slip_rate_per_s={"go": 0.0, "pick": 0.0, "lift": 0.0})
+    teacher = Teacher(config, rng=0)
+    dock_x, dock_y, dock_yaw = teacher.dock_pose
+    teacher.begin("pick")
+    teacher.phase, teacher._settle_steps = "settle", 0
+    askew = dock_yaw - np.radians(10.0)  # turned right of square
+    turns = [teacher.step((dock_x, dock_y, askew)) for _ in range(4)]
+    if settle == "align":
+        assert turns == ["turn_left"] * 4
+    else:
+        assert turns == list(config.settle_pattern[:4])
+    with pytest.raises(
+        ValueError, match="unknown teacher.settle 'wiggle'; allowed: align, pattern"
+    ):
+        TeacherConfig(settle="wiggle")
 
 
 @pytest.mark.parametrize("row", ["pick", "pick_other_wall"])

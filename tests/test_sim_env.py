@@ -396,8 +396,12 @@ def test_pick_triggers_on_a_drawn_share_of_entries_and_go_goes_on_otherwise():
             TeacherConfig(pick_trigger_probability=bad)
     with pytest.raises(ValueError, match=r"teacher.pick_trigger_x_m must be \(min, max\)"):
         TeacherConfig(pick_trigger_x_m=(1.6, 1.2))
-    with pytest.raises(ValueError, match="unknown teacher.docking 'straight'; allowed: lane"):
+    with pytest.raises(
+        ValueError, match="unknown teacher.docking 'straight'; allowed: funnel, lane, phased"
+    ):
         TeacherConfig(docking="straight")
+    with pytest.raises(ValueError, match="teacher.funnel_lookahead_m must be > 0 m, got 0.0"):
+        TeacherConfig(funnel_lookahead_m=0.0)
 
 
 def test_disturbances_turn_the_wheels_while_the_commands_stay_the_controllers():
