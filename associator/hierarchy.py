@@ -39,7 +39,11 @@ OWN_PARAMS = (
     "unit_transition_prior",
     "pose_evidence",
     "perform_temperature",
+    "perform_readout",
 )
+
+#: How performing reads the motor directive out (``perform_readout``).
+PERFORM_READOUTS = ("posterior", "winner")
 
 #: Hyper-parameters for which 0 is a setting (switches a read-out off), not an error.
 _MAY_BE_ZERO = ("perform_temperature",)
@@ -158,9 +162,15 @@ class HierarchicalAssociator:
         pose fits each word's component at the winner: its evidence is multiplied by
         ``N(pose | word, k) ** pose_evidence`` (default 0.1).
     perform_temperature : float
-        Performing with the counted components: 0 (default) drives with the winner's
-        ``p(directive | k, word)``; above 0, with their mixture over every counted component,
-        each weighted by ``softmax(activation / perform_temperature)`` (0 or more).
+        With ``perform_readout = "winner"`` and the counted components: 0 (default) drives with
+        the winner's ``p(directive | k, word)``; above 0, with their mixture over every counted
+        component, each weighted by ``softmax(activation / perform_temperature)`` (0 or more).
+    perform_readout : str
+        'posterior' (default): once ``count_word_statistics`` has counted, the motor output is
+        ``sum_k p(k | pose, word) p(directive | k, word)``, each counted component weighted by its
+        posterior ``n_k N(pose | word, k)`` normalised (an interpolation between units: each unit
+        holds one directive, so the winner alone switches between them). 'winner': the unit that
+        wins the biased competition below, as up to version 0.4.0.
     """
 
     def __init__(
@@ -178,6 +188,7 @@ class HierarchicalAssociator:
         unit_transition_prior: float = 10.0,
         pose_evidence: float = 0.1,
         perform_temperature: float = 0.0,
+        perform_readout: str = "posterior",
     ):
         self.lower = lower
         self.motor_gain = motor_gain
@@ -191,6 +202,7 @@ class HierarchicalAssociator:
         self.unit_transition_prior = unit_transition_prior
         self.pose_evidence = pose_evidence
         self.perform_temperature = perform_temperature
+        self.perform_readout = perform_readout
 
     def _lower_estimator(self) -> Associator:
         """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
@@ -225,6 +237,7 @@ class HierarchicalAssociator:
             unit_transition_prior=float(self.unit_transition_prior),
             pose_evidence=float(self.pose_evidence),
             perform_temperature=float(self.perform_temperature),
+            perform_readout=str(self.perform_readout),
         )
         return params
 
@@ -236,8 +249,15 @@ class HierarchicalAssociator:
     def validate_params(self) -> None:
         """Raises ValueError naming the first bad hyper-parameter, the lower network's included."""
         self._lower_estimator().validate_params()
+        if self.perform_readout not in PERFORM_READOUTS:
+            raise ValueError(
+                f"unknown perform_readout {self.perform_readout!r}; allowed: "
+                f"{', '.join(PERFORM_READOUTS)}"
+            )
         for name in OWN_PARAMS:
             value = getattr(self, name)
+            if name == "perform_readout":
+                continue
             if name in _MAY_BE_ZERO:
                 if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
                     raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
@@ -626,6 +646,10 @@ class HierarchicalAssociator:
         """Chooses motor directives for ``n`` samples from vision (n, 96) and words (one word for
         all, or a sequence of ``n`` vocabulary words; ValueError naming any other).
 
+        With ``perform_readout = "posterior"`` and counted components, the output is the
+        components' posterior mixture (``_posterior_motor``; the winner reported is the most
+        probable component); otherwise, as follows.
+
         The winner maximises ``cos(v, W_bu,k[vision]) + word_bias * log p(k | word)``, plus
         ``pose_weight * log N(pose | word, k)`` once ``count_word_statistics`` has counted; the
         output is then ``p(directive | k, word)`` (with ``perform_temperature`` > 0, its mixture
@@ -662,6 +686,14 @@ class HierarchicalAssociator:
                 continue
             pose = self._pose_log_likelihoods(v, w)
             counted = np.isfinite(pose).any(axis=1)  # the word has components to choose from
+            if self.perform_readout == "posterior" and np.any(counted):
+                rows = np.flatnonzero(counted)
+                posterior, motor[start + rows] = self._posterior_motor(pose[rows], w[rows])
+                winners[start + rows] = posterior.argmax(axis=1)
+                rest = np.flatnonzero(~counted)
+                winners[start + rest] = activation[rest].argmax(axis=1)
+                motor[start + rest] = motor_td[winners[start + rest]]
+                continue
             activation[counted] += self.pose_weight * pose[counted]
             k = activation.argmax(axis=1)
             winners[part] = k
@@ -673,6 +705,21 @@ class HierarchicalAssociator:
                 motor[start + rows] = self._mixture_motor(activation[rows], w[rows])
         best = motor.argmax(axis=1)
         return BatchPerformance(np.asarray(DIRECTIVES)[best], motor, winners)
+
+    def _posterior_motor(self, pose: np.ndarray, word_index: np.ndarray):
+        """Returns the posterior (n, n_hidden) of each counted component given the pose,
+        ``softmax(log n_k + log N(pose | word, k))``, and the motor output (n, 4)
+        ``sum_k posterior_k p(d | k, word)``."""
+        finite = np.where(np.isfinite(pose), pose, -np.inf)
+        posterior = np.exp(finite - finite.max(axis=1, keepdims=True))
+        posterior /= posterior.sum(axis=1, keepdims=True)
+        counts = self.word_motor_counts_
+        table = counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
+        out = np.empty((len(pose), N_MOTOR))
+        for word in np.unique(word_index):
+            rows = word_index == word
+            out[rows] = posterior[rows] @ table[word]
+        return posterior, out
 
     def _mixture_motor(self, activation: np.ndarray, word_index: np.ndarray) -> np.ndarray:
         """Returns (n, 4): ``sum_k softmax(activation / perform_temperature)_k p(d | k, word)``

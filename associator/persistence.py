@@ -205,6 +205,7 @@ def _read(path):
 def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
     try:
         own = json.loads(str(data["hierarchy_params"]))
+        own.setdefault("perform_readout", "winner")  # saved before version 0.5.0
         unfitted_lower = Associator(**lower.get_params())
         model = HierarchicalAssociator(lower=unfitted_lower, **own)
         model.validate_params()

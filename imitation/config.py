@@ -156,6 +156,7 @@ class HierarchyConfig:
     unit_transition_prior: float = _HIERARCHY_DEFAULTS["unit_transition_prior"]
     pose_evidence: float = _HIERARCHY_DEFAULTS["pose_evidence"]
     perform_temperature: float = _HIERARCHY_DEFAULTS["perform_temperature"]
+    perform_readout: str = _HIERARCHY_DEFAULTS["perform_readout"]
 
     def hyper_parameters(self) -> dict:
         """Returns the hierarchical associator's own hyper-parameters by name."""
