@@ -96,7 +96,7 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
             drive=config.drive,
             arena=env.task.geometry,
             rng=rng,
-            teacher_config=config.teacher,
+            teacher_config=reference_teacher_config(config),
             vision=perturbations.teacher_vision(
                 config.perturbations, config.task.control_timestep, rng
             ),
@@ -119,6 +119,18 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
         drive=config.drive,
         graded=config.performance.drive == "graded",
         arena=env.task.geometry,
+    )
+
+
+def reference_teacher_config(config: RunConfig):
+    """Returns the teacher settings the reference row performs with: the run's, told the
+    perturbed robot's acceleration limits (a real controller is configured for its robot)."""
+    actuation = config.perturbations.actuation
+    teacher = config.teacher
+    return dataclasses.replace(
+        teacher,
+        robot_linear_accel_mps2=actuation.linear_accel_mps2 or teacher.robot_linear_accel_mps2,
+        robot_yaw_accel_degps2=actuation.yaw_accel_degps2 or teacher.robot_yaw_accel_degps2,
     )
 
 

@@ -86,6 +86,12 @@ class TeacherConfig:
         offset drawn uniformly within +- this, until its depth in front of the dock is below a
         depth drawn uniformly within (0, ``funnel_lookahead_m``); then it steers at the dock,
         so the demonstrations show how to correct a sideways miss near the table (0: never).
+      robot_linear_accel_mps2, robot_yaw_accel_degps2: the robot's firmware limits on the change
+        of its speed set-points (0: none, the speeds change at once, as in the simulated robot by
+        default). Given, the funnel docking and the squaring stop commanding motion once the
+        robot, braking at that limit from its measured speed, would come to rest at the dock or
+        square (a real controller configured for its robot; ``imitation.trials`` gives the
+        reference teacher the perturbed robot's limits).
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
       slip_rate_per_s: disturbances per second of each behaviour (a Poisson rate; 0: none). In
@@ -121,6 +127,8 @@ class TeacherConfig:
     funnel_miss_m: float = 0.25
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
+    robot_linear_accel_mps2: float = 0.0
+    robot_yaw_accel_degps2: float = 0.0
     lift_backoff_m: float = 0.9
     face_centre_tol_deg: float = 10.0
     stuck_seconds: float = 4.0
@@ -246,6 +254,8 @@ class Teacher:
         self._slip_steps = 0
         self._slip_directive = "forward"
         self._miss_m = self._miss_depth_m = 0.0
+        self._last_pose = None
+        self._speed_mps = self._yaw_rate_degps = 0.0
         self.time_s = 0.0
         self.cycles_completed = 0
         self.events: list[WatchdogEvent] = []
@@ -276,6 +286,9 @@ class Teacher:
         "_pick_on_entry",
         "_miss_m",
         "_miss_depth_m",
+        "_last_pose",
+        "_speed_mps",
+        "_yaw_rate_degps",
     )
 
     def get_state(self) -> dict:
@@ -382,6 +395,11 @@ class Teacher:
         """
         x, y, yaw = (float(v) for v in pose)
         self.time_s += dt
+        if self._last_pose is not None and dt > 0:  # measured speeds, for braking ahead
+            x0, y0, yaw0 = self._last_pose
+            self._speed_mps = ((x - x0) * math.cos(yaw) + (y - y0) * math.sin(yaw)) / dt
+            self._yaw_rate_degps = wrap_degrees(math.degrees(yaw - yaw0)) / dt
+        self._last_pose = [x, y, yaw]
         self._watchdog(x, y)
         if getattr(self, "finished", False):
             return self.directive  # a single finished behaviour holds its last directive
@@ -507,6 +525,9 @@ class Teacher:
                 return "forward"
             self.phase = "square"
         # 'square': stand square to the table.
+        if c.robot_yaw_accel_degps2 > 0:  # square and settle: where a turn braked now would end
+            rate = self._yaw_rate_degps
+            heading_error -= rate * abs(rate) / (2.0 * c.robot_yaw_accel_degps2)
         if self.phase == "approach" or self.phase == "square":
             if abs(heading_error) > c.dock_heading_tol_deg:
                 self.phase = "square"
@@ -579,6 +600,13 @@ class Teacher:
         lateral, depth = x - dock_x, dock_y - y
         if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m:
             return None
+        if c.robot_linear_accel_mps2 > 0 and self._speed_mps > 0:
+            # Braking now, the robot rolls on this far: done if it comes to rest at the dock.
+            reach = self._speed_mps**2 / (2.0 * c.robot_linear_accel_mps2)
+            for f in np.linspace(0.0, 1.0, 11)[1:]:
+                lx, d = lateral + f * reach * math.cos(yaw), depth - f * reach * math.sin(yaw)
+                if d <= 0.015 and abs(lx) <= c.funnel_tolerance_m:
+                    return None
         if depth < -0.015:
             self.phase = "back_up"
             error = wrap_degrees(math.degrees(math.pi / 2 - yaw))

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from imitation import config as run_config
+from imitation import performance, recognition, trials
 from imitation import perturbations as pt
-from imitation import recognition, trials
 from imitation.cli import reproduce_config
 from imitation.observers import Calibration, StudentVision
 from imitation.reproduce import SHARED_LEARNING_SECTIONS
@@ -382,3 +382,29 @@ def test_results_md_names_the_perturbations_a_run_turned_on():
     config = dataclasses.replace(run_config.RunConfig(), perturbations=pt.preset("realistic"))
     keys = perturbed_settings(config.to_dict())
     assert "actuation.linear_accel_mps2 = 0.3" in keys and len(keys) == 14
+
+
+def test_the_reference_teacher_docks_under_aria_accelerations_by_braking_ahead():
+    """Told the robot's acceleration limits (``trials.reference_teacher_config``), the teacher's
+    funnel docking stops commanding motion once braking would bring the robot to rest at the dock
+    and square; told none it rolls past the dock (0.35 m/s braked at 0.3 m/s^2 rolls 0.2 m) from
+    the same start. Without limits the controller is as before."""
+    base = run_config.RunConfig().replace(
+        {f"perturbations.{k}": v for k, v in pt.ARIA_ACCELERATION.items()}
+    )
+    told = trials.reference_teacher_config(base)
+    assert (told.robot_linear_accel_mps2, told.robot_yaw_accel_degps2) == (0.3, 100.0)
+    assert trials.reference_teacher_config(run_config.RunConfig()) == run_config.RunConfig().teacher
+    env = trials.student_environment(base)
+    plan = [p for p in trials.trial_plan(base, ("teacher",)) if p.row == "pick"]
+    item = plan[9]  # a straight approach, at full speed into the dock
+    braking = trials.run_planned_trial(base, env, item, "teacher", None, None)
+    assert braking.success, braking.reason
+    blind = trials.make_agent(base, "teacher", "pick", env, None, None, rng=[0, 1, item.index])
+    blind.teacher_config = dataclasses.replace(
+        blind.teacher_config, robot_linear_accel_mps2=0.0, robot_yaw_accel_degps2=0.0
+    )
+    blind.reset()
+    rolled = performance.run_trial(env, blind, "pick", item.start, item.wall)
+    env.close()
+    assert not rolled.success, rolled.reason
