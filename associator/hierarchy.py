@@ -710,31 +710,25 @@ class HierarchicalAssociator:
         """Returns the posterior (n, n_hidden) of each counted component given the pose,
         ``softmax(log n_k + log N(pose | word, k))``, and the motor output (n, 4)
         ``sum_k posterior_k p(d | k, word)``."""
-        finite = np.where(np.isfinite(pose), pose, -np.inf)
-        posterior = np.exp(finite - finite.max(axis=1, keepdims=True))
-        posterior /= posterior.sum(axis=1, keepdims=True)
-        counts = self.word_motor_counts_
-        table = counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
-        out = np.empty((len(pose), N_MOTOR))
-        for word in np.unique(word_index):
-            rows = word_index == word
-            out[rows] = posterior[rows] @ table[word]
-        return posterior, out
+        return self._mix_directives(pose, word_index)
 
     def _mixture_motor(self, activation: np.ndarray, word_index: np.ndarray) -> np.ndarray:
         """Returns (n, 4): ``sum_k softmax(activation / perform_temperature)_k p(d | k, word)``
         over the word's counted components (the others, at -inf, weigh nothing)."""
-        scaled = activation / self.perform_temperature
-        scaled -= scaled.max(axis=1, keepdims=True)
-        weights = np.exp(scaled)
+        return self._mix_directives(activation / self.perform_temperature, word_index)[1]
+
+    def _mix_directives(self, log_weights: np.ndarray, word_index: np.ndarray):
+        """Returns ``softmax(log_weights)`` (n, n_hidden; -inf weighs nothing) and the mixture
+        (n, 4) of the word-and-unit directive distributions ``p(d | k, word)`` it weights."""
+        weights = np.exp(log_weights - log_weights.max(axis=1, keepdims=True))
         weights /= weights.sum(axis=1, keepdims=True)
         counts = self.word_motor_counts_
         table = counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
-        out = np.empty((len(activation), N_MOTOR))
+        out = np.empty((len(log_weights), N_MOTOR))
         for word in np.unique(word_index):
             rows = word_index == word
             out[rows] = weights[rows] @ table[word]
-        return out
+        return weights, out
 
     def perform(self, vision, word) -> Performance:
         """Chooses the motor directive for one vision code (96,) and word; see
