@@ -45,6 +45,9 @@ OWN_PARAMS = (
 #: How performing reads the motor directive out (``perform_readout``).
 PERFORM_READOUTS = ("posterior", "winner")
 
+#: Hyper-parameters that are names, checked against their allowed values instead.
+_NOT_NUMBERS = ("perform_readout",)
+
 #: Hyper-parameters for which 0 is a setting (switches a read-out off), not an error.
 _MAY_BE_ZERO = ("perform_temperature",)
 
@@ -255,9 +258,9 @@ class HierarchicalAssociator:
                 f"{', '.join(PERFORM_READOUTS)}"
             )
         for name in OWN_PARAMS:
-            value = getattr(self, name)
-            if name == "perform_readout":
+            if name in _NOT_NUMBERS:
                 continue
+            value = getattr(self, name)
             if name in _MAY_BE_ZERO:
                 if not (isinstance(value, (int, float)) and np.isfinite(value) and value >= 0):
                     raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
@@ -647,8 +650,9 @@ class HierarchicalAssociator:
         all, or a sequence of ``n`` vocabulary words; ValueError naming any other).
 
         With ``perform_readout = "posterior"`` and counted components, the output is the
-        components' posterior mixture (``_posterior_motor``; the winner reported is the most
-        probable component); otherwise, as follows.
+        mixture of the counted components weighted by their posterior
+        ``softmax(log n_k + log N(pose | word, k))`` (``_mix_directives``; the winner reported is
+        the most probable component); otherwise, as follows.
 
         The winner maximises ``cos(v, W_bu,k[vision]) + word_bias * log p(k | word)``, plus
         ``pose_weight * log N(pose | word, k)`` once ``count_word_statistics`` has counted; the
@@ -688,7 +692,7 @@ class HierarchicalAssociator:
             counted = np.isfinite(pose).any(axis=1)  # the word has components to choose from
             if self.perform_readout == "posterior" and np.any(counted):
                 rows = np.flatnonzero(counted)
-                posterior, motor[start + rows] = self._posterior_motor(pose[rows], w[rows])
+                posterior, motor[start + rows] = self._mix_directives(pose[rows], w[rows])
                 winners[start + rows] = posterior.argmax(axis=1)
                 rest = np.flatnonzero(~counted)
                 winners[start + rest] = activation[rest].argmax(axis=1)
@@ -705,12 +709,6 @@ class HierarchicalAssociator:
                 motor[start + rows] = self._mixture_motor(activation[rows], w[rows])
         best = motor.argmax(axis=1)
         return BatchPerformance(np.asarray(DIRECTIVES)[best], motor, winners)
-
-    def _posterior_motor(self, pose: np.ndarray, word_index: np.ndarray):
-        """Returns the posterior (n, n_hidden) of each counted component given the pose,
-        ``softmax(log n_k + log N(pose | word, k))``, and the motor output (n, 4)
-        ``sum_k posterior_k p(d | k, word)``."""
-        return self._mix_directives(pose, word_index)
 
     def _mixture_motor(self, activation: np.ndarray, word_index: np.ndarray) -> np.ndarray:
         """Returns (n, 4): ``sum_k softmax(activation / perform_temperature)_k p(d | k, word)``
