@@ -40,6 +40,7 @@ OWN_PARAMS = (
     "pose_evidence",
     "perform_temperature",
     "perform_readout",
+    "pose_heading_bins",
 )
 
 #: How performing reads the motor directive out (``perform_readout``).
@@ -79,6 +80,14 @@ def _pose_features(vision: np.ndarray) -> np.ndarray:
     centres = encoding.vision_code_centres(vision)
     angle = centres[:, 2] * (2 * np.pi / N_PHI)
     return np.stack([centres[:, 0], centres[:, 1], np.cos(angle), np.sin(angle)], axis=1)
+
+
+def heading_sectors(vision: np.ndarray, bins: int) -> np.ndarray:
+    """Returns (n,) int: the sector, of ``bins`` equal ones around the circle (sector 0 centred on
+    0 deg), that the heading of each vision code (n, 96) lies in."""
+    centres = encoding.vision_code_centres(vision)[:, 2]
+    width = N_PHI / bins
+    return (np.floor((centres - N_PHI / 2) / width + 0.5).astype(np.int64)) % bins
 
 
 def _word_list(words, vocabulary) -> list:
@@ -174,6 +183,13 @@ class HierarchicalAssociator:
         posterior ``n_k N(pose | word, k)`` normalised (an interpolation between units: each unit
         holds one directive, so the winner alone switches between them). 'winner': the unit that
         wins the biased competition below, as up to version 0.4.0.
+    pose_heading_bins : int
+        The posterior read-out's components split each word-and-unit component by the heading
+        sector its samples were in (this many equal sectors, one centred on 0 deg; 1: no split).
+        A unit that won every turn of a word in place then gives one component per heading,
+        each where the teacher turned at that heading, instead of one wide blob that claims
+        every pose near it (default 24, the heading code's units; recognition keeps the unit's
+        whole component).
     """
 
     def __init__(
@@ -192,6 +208,7 @@ class HierarchicalAssociator:
         pose_evidence: float = 0.1,
         perform_temperature: float = 0.0,
         perform_readout: str = "posterior",
+        pose_heading_bins: int = 24,
     ):
         self.lower = lower
         self.motor_gain = motor_gain
@@ -206,6 +223,7 @@ class HierarchicalAssociator:
         self.pose_evidence = pose_evidence
         self.perform_temperature = perform_temperature
         self.perform_readout = perform_readout
+        self.pose_heading_bins = pose_heading_bins
 
     def _lower_estimator(self) -> Associator:
         """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
@@ -241,6 +259,7 @@ class HierarchicalAssociator:
             pose_evidence=float(self.pose_evidence),
             perform_temperature=float(self.perform_temperature),
             perform_readout=str(self.perform_readout),
+            pose_heading_bins=int(self.pose_heading_bins),
         )
         return params
 
@@ -256,6 +275,14 @@ class HierarchicalAssociator:
             raise ValueError(
                 f"unknown perform_readout {self.perform_readout!r}; allowed: "
                 f"{', '.join(PERFORM_READOUTS)}"
+            )
+        bins = self.pose_heading_bins
+        number = isinstance(bins, (int, float, np.integer, np.floating)) and not isinstance(
+            bins, bool
+        )
+        if not (number and np.isfinite(bins) and bins == int(bins) and 1 <= bins <= N_PHI):
+            raise ValueError(
+                f"pose_heading_bins must be a whole number in [1, {N_PHI}], got {bins!r}"
             )
         for name in OWN_PARAMS:
             if name in _NOT_NUMBERS:
@@ -363,15 +390,15 @@ class HierarchicalAssociator:
         self, vision, language, motor, performed=None
     ) -> HierarchicalAssociator:
         """Counts, with the lower level frozen, what the word layer needs to perform: for each
-        heard word and lower winner (the recognition winner of vision and motor, as after
-        training), the number of samples, the sums of the pose and of its squares (the vision
-        code's bump centres, in units of the code; the heading as a unit vector) and the count of
-        each directive performed there. Call it on the training stream once training is over, in
-        pieces if need be (the counts add up); ``partial_fit`` drops them, as the lower level then
-        changes. Shapes as for :meth:`partial_fit`; ``performed`` (n, 4), the motor codes of what
-        was done at each sample when ``motor`` is not that (e.g. directives inferred from the
-        motion into each pose: the motion out of it is what was done there), default ``motor``.
-        Returns self."""
+        heard word, lower winner (the recognition winner of vision and motor, as after
+        training) and heading sector (``pose_heading_bins``), the number of samples, the sums of
+        the pose and of its squares (the vision code's bump centres, in units of the code; the
+        heading as a unit vector) and the count of each directive performed there. Call it on the
+        training stream once training is over, in pieces if need be (the counts add up);
+        ``partial_fit`` drops them, as the lower level then changes. Shapes as for
+        :meth:`partial_fit`; ``performed`` (n, 4), the motor codes of what was done at each sample
+        when ``motor`` is not that (e.g. directives inferred from the motion into each pose: the
+        motion out of it is what was done there), default ``motor``. Returns self."""
         self._check_fitted()
         self.validate_params()
         z = encoding.assemble(vision, language, motor)
@@ -381,19 +408,19 @@ class HierarchicalAssociator:
             raise ValueError(
                 f"performed must have one row per sample ({z.shape[0]}), got {performed.shape[0]}"
             )
-        n_words, n_hidden = len(self.vocabulary), self.lower_.n_hidden
+        n_words, bins = len(self.vocabulary), int(self.pose_heading_bins)
+        n_components = self.lower_.n_hidden * bins
         if not hasattr(self, "word_samples_"):
-            self.word_samples_ = np.zeros((n_words, n_hidden))
-            self.word_pose_sums_ = np.zeros((n_words, n_hidden, 4))
-            self.word_pose_squares_ = np.zeros((n_words, n_hidden, 2))
-            self.word_motor_counts_ = np.zeros((n_words, n_hidden, N_MOTOR))
+            self.word_samples_ = np.zeros((n_words, n_components))
+            self.word_pose_sums_ = np.zeros((n_words, n_components, 4))
+            self.word_pose_squares_ = np.zeros((n_words, n_components, 2))
+            self.word_motor_counts_ = np.zeros((n_words, n_components, N_MOTOR))
         if z.shape[0] == 0:
             return self
         vision, motor = z[:, encoding.VISION_SLICE], z[:, encoding.MOTOR_SLICE]
-        cell = self._heard_words(z[:, encoding.LANGUAGE_SLICE]) * n_hidden + self._lower_winners(
-            vision, motor, 1.0
-        )
-        size = n_words * n_hidden
+        component = self._lower_winners(vision, motor, 1.0) * bins + heading_sectors(vision, bins)
+        cell = self._heard_words(z[:, encoding.LANGUAGE_SLICE]) * n_components + component
+        size = n_words * n_components
 
         def add(target, weights=None):
             target += np.bincount(cell, weights=weights, minlength=size).reshape(target.shape)
@@ -414,16 +441,46 @@ class HierarchicalAssociator:
         """Whether ``count_word_statistics`` has counted since the lower level last learned."""
         return hasattr(self, "word_samples_")
 
-    def _pose_components(self):
-        """Returns the word-and-winner pose components (n_words, n_hidden): x and y means (..., 2)
-        and spreads (..., 2), the heading's mean and spread, all in units of the vision code (each
-        spread at least ``pose_width_floor``, the heading's circular), and the log of each
-        component's normaliser; components with fewer than ``min_word_samples`` samples have a
-        normaliser of -inf."""
-        samples = self.word_samples_
+    def _unit_statistics(self):
+        """Returns the word statistics per word and lower unit (n_words, n_hidden, ...): samples,
+        pose sums, pose squares and directive counts, summed over the heading sectors."""
+        bins = int(self.pose_heading_bins)
+        if bins == 1:
+            return (
+                self.word_samples_,
+                self.word_pose_sums_,
+                self.word_pose_squares_,
+                self.word_motor_counts_,
+            )
+        n_words, n_hidden = len(self.vocabulary), self.lower_.n_hidden
+        return tuple(
+            values.reshape(n_words, n_hidden, bins, *values.shape[2:]).sum(axis=2)
+            for values in (
+                self.word_samples_,
+                self.word_pose_sums_,
+                self.word_pose_squares_,
+                self.word_motor_counts_,
+            )
+        )
+
+    def _pose_components(self, per_unit: bool = True):
+        """Returns the word-and-winner pose components (n_words, n_hidden), or with ``per_unit``
+        False the word-unit-and-sector ones (n_words, n_hidden x pose_heading_bins): x and y
+        means (..., 2) and spreads (..., 2), the heading's mean and spread, all in units of the
+        vision code (each spread at least ``pose_width_floor``, the heading's circular), and the
+        log of each component's normaliser; components with fewer than ``min_word_samples``
+        samples have a normaliser of -inf. Also returns the components' sample counts."""
+        if per_unit:
+            samples, sums, squares, _ = self._unit_statistics()
+        else:
+            samples, sums, squares = (
+                self.word_samples_,
+                self.word_pose_sums_,
+                self.word_pose_squares_,
+            )
         safe = np.maximum(samples, 1.0)
-        mean = self.word_pose_sums_ / safe[..., None]
-        var = self.word_pose_squares_ / safe[..., None] - mean[..., :2] ** 2
+        mean = sums / safe[..., None]
+        var = squares / safe[..., None] - mean[..., :2] ** 2
         floor = float(self.pose_width_floor)
         sd_xy = np.sqrt(np.maximum(var, floor**2))
         resultant = np.clip(np.hypot(mean[..., 2], mean[..., 3]), 1e-6, 1.0)
@@ -432,13 +489,13 @@ class HierarchicalAssociator:
         mean_phi = np.arctan2(mean[..., 3], mean[..., 2]) * to_units
         log_norm = -np.log(sd_xy[..., 0] * sd_xy[..., 1] * sd_phi)
         log_norm = np.where(samples >= self.min_word_samples, log_norm, -np.inf)
-        return mean[..., :2], sd_xy, mean_phi, sd_phi, log_norm
+        return mean[..., :2], sd_xy, mean_phi, sd_phi, log_norm, samples
 
     def _pose_fit_at_winners(self, vision: np.ndarray, winners: np.ndarray) -> np.ndarray:
         """Returns (n, n_words): the Gaussian log-likelihood of each sample's pose under each
         word's component at the sample's winner; components counted fewer than
         ``min_word_samples`` times take the best of the others (no evidence either way)."""
-        mean, sd_xy, mean_phi, sd_phi, log_norm = self._pose_components()
+        mean, sd_xy, mean_phi, sd_phi, log_norm, _ = self._pose_components()
         centres = encoding.vision_code_centres(vision)
         half = N_PHI / 2
         k = winners
@@ -453,12 +510,15 @@ class HierarchicalAssociator:
         best = np.where(np.isfinite(best), best, 0.0)
         return np.where(np.isfinite(fit), fit, best)
 
-    def _pose_log_likelihoods(self, vision: np.ndarray, word_index: np.ndarray) -> np.ndarray:
-        """Returns (n, n_hidden): the log-likelihood of each sample's pose under each word-and-
-        winner component (``_pose_components``), plus the log of its sample count; -inf for
-        components with fewer than ``min_word_samples`` samples."""
-        mean, sd_xy, mean_phi, sd_phi, log_norm = self._pose_components()
-        norm = np.log(np.maximum(self.word_samples_, 1.0)) + log_norm
+    def _pose_log_likelihoods(
+        self, vision: np.ndarray, word_index: np.ndarray, per_unit: bool = True
+    ) -> np.ndarray:
+        """Returns (n, n_components): the log-likelihood of each sample's pose under each
+        component of its word (``_pose_components``; per unit, or per unit and heading sector),
+        plus the log of its sample count; -inf for components with fewer than
+        ``min_word_samples`` samples."""
+        mean, sd_xy, mean_phi, sd_phi, log_norm, samples = self._pose_components(per_unit)
+        norm = np.log(np.maximum(samples, 1.0)) + log_norm
         centres = encoding.vision_code_centres(vision)
         w = word_index
         half = N_PHI / 2
@@ -688,12 +748,18 @@ class HierarchicalAssociator:
                 winners[part] = activation.argmax(axis=1)
                 motor[part] = motor_td[winners[part]]
                 continue
-            pose = self._pose_log_likelihoods(v, w)
+            if self.perform_readout == "posterior":
+                pose = self._pose_log_likelihoods(v, w, per_unit=False)
+            else:
+                pose = self._pose_log_likelihoods(v, w)
             counted = np.isfinite(pose).any(axis=1)  # the word has components to choose from
             if self.perform_readout == "posterior" and np.any(counted):
                 rows = np.flatnonzero(counted)
-                posterior, motor[start + rows] = self._mix_directives(pose[rows], w[rows])
-                winners[start + rows] = posterior.argmax(axis=1)
+                posterior, motor[start + rows] = self._mix_directives(
+                    pose[rows], w[rows], self.word_motor_counts_
+                )
+                # The most probable component's unit.
+                winners[start + rows] = posterior.argmax(axis=1) // int(self.pose_heading_bins)
                 rest = np.flatnonzero(~counted)
                 winners[start + rest] = activation[rest].argmax(axis=1)
                 motor[start + rest] = motor_td[winners[start + rest]]
@@ -701,7 +767,7 @@ class HierarchicalAssociator:
             activation[counted] += self.pose_weight * pose[counted]
             k = activation.argmax(axis=1)
             winners[part] = k
-            counts = self.word_motor_counts_[w, k]
+            counts = self._unit_statistics()[3][w, k]
             totals = counts.sum(axis=1, keepdims=True)
             motor[part] = np.where(counted[:, None], counts / np.maximum(totals, 1.0), motor_td[k])
             if self.perform_temperature > 0 and np.any(counted):
@@ -713,14 +779,15 @@ class HierarchicalAssociator:
     def _mixture_motor(self, activation: np.ndarray, word_index: np.ndarray) -> np.ndarray:
         """Returns (n, 4): ``sum_k softmax(activation / perform_temperature)_k p(d | k, word)``
         over the word's counted components (the others, at -inf, weigh nothing)."""
-        return self._mix_directives(activation / self.perform_temperature, word_index)[1]
+        counts = self._unit_statistics()[3]
+        return self._mix_directives(activation / self.perform_temperature, word_index, counts)[1]
 
-    def _mix_directives(self, log_weights: np.ndarray, word_index: np.ndarray):
-        """Returns ``softmax(log_weights)`` (n, n_hidden; -inf weighs nothing) and the mixture
-        (n, 4) of the word-and-unit directive distributions ``p(d | k, word)`` it weights."""
+    def _mix_directives(self, log_weights: np.ndarray, word_index: np.ndarray, counts):
+        """Returns ``softmax(log_weights)`` (n, n_components; -inf weighs nothing) and the mixture
+        (n, 4) of the components' directive distributions ``p(d | k, word)`` it weights, from
+        their directive ``counts`` (n_words, n_components, 4)."""
         weights = np.exp(log_weights - log_weights.max(axis=1, keepdims=True))
         weights /= weights.sum(axis=1, keepdims=True)
-        counts = self.word_motor_counts_
         table = counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
         out = np.empty((len(log_weights), N_MOTOR))
         for word in np.unique(word_index):

@@ -206,6 +206,7 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
     try:
         own = json.loads(str(data["hierarchy_params"]))
         own.setdefault("perform_readout", "winner")  # saved before version 0.5.0
+        own.setdefault("pose_heading_bins", 1)  # saved before version 0.6.0
         unfitted_lower = Associator(**lower.get_params())
         model = HierarchicalAssociator(lower=unfitted_lower, **own)
         model.validate_params()
@@ -326,12 +327,13 @@ def _counts_agree(path, lower: Associator, links, words, keys, counts, last) -> 
 
 def _word_statistics(path, model: HierarchicalAssociator, data) -> None:
     """Checks and sets the optional word statistics (``count_word_statistics``)."""
-    n_words, n_hidden = len(model.vocabulary), model.lower_.n_hidden
+    n_words = len(model.vocabulary)
+    n_components = model.lower_.n_hidden * int(model.pose_heading_bins)  # unit x heading sector
     shapes = {
-        "word_samples": (n_words, n_hidden),
-        "word_pose_sums": (n_words, n_hidden, 4),
-        "word_pose_squares": (n_words, n_hidden, 2),
-        "word_motor_counts": (n_words, n_hidden, 4),
+        "word_samples": (n_words, n_components),
+        "word_pose_sums": (n_words, n_components, 4),
+        "word_pose_squares": (n_words, n_components, 2),
+        "word_motor_counts": (n_words, n_components, 4),
     }
     for key, _ in _STATISTICS:
         values = data[key]
@@ -346,8 +348,8 @@ def _word_statistics(path, model: HierarchicalAssociator, data) -> None:
         _whole(path, key, data[key])
 
     def cell(where: np.ndarray) -> str:
-        word, unit = np.argwhere(where)[0]
-        return f"(word {model.vocabulary[word]!r}, unit {unit})"
+        word, component = np.argwhere(where)[0]
+        return f"(word {model.vocabulary[word]!r}, component {component})"
 
     wrong = data["word_motor_counts"].sum(axis=2) != samples
     if np.any(wrong):

@@ -157,6 +157,7 @@ class HierarchyConfig:
     pose_evidence: float = _HIERARCHY_DEFAULTS["pose_evidence"]
     perform_temperature: float = _HIERARCHY_DEFAULTS["perform_temperature"]
     perform_readout: str = _HIERARCHY_DEFAULTS["perform_readout"]
+    pose_heading_bins: int = _HIERARCHY_DEFAULTS["pose_heading_bins"]
 
     def hyper_parameters(self) -> dict:
         """Returns the hierarchical associator's own hyper-parameters by name."""

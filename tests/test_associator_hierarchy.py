@@ -25,7 +25,9 @@ def learned():
     """The two-level network and the paper's flat one trained on the same synthetic teacher, and
     a held-out stream from another seed."""
     train = synthetic.encode_stream(synthetic.teacher_stream(N_LEARN, rng=1))
-    model = HierarchicalAssociator(lower=Associator(**PARAMS)).fit(*train)
+    # One heading sector: the tests of the word statistics below check them per unit; the
+    # sectors are checked on their own (test_heading_sectors_split_...).
+    model = HierarchicalAssociator(lower=Associator(**PARAMS), pose_heading_bins=1).fit(*train)
     flat = Associator(**PARAMS).fit(*train)
     test_stream = synthetic.teacher_stream(20_000, rng=2)
     return model, flat, test_stream, synthetic.encode_stream(test_stream)
@@ -557,6 +559,7 @@ def test_lower_estimator_params_round_trip_and_files_keep_their_layout(tmp_path)
         "pose_evidence": 0.1,
         "perform_temperature": 0.0,
         "perform_readout": "posterior",
+        "pose_heading_bins": 24,
     }
     assert model.vocabulary == WORDS
     model.fit(*_small_stream())
@@ -635,3 +638,81 @@ def test_the_read_out_weight_is_motor_weight(learned):
         model.recognise(vision[0], motor[0], motor_gain=2.0)
     with pytest.raises(ValueError, match="motor_weight must be a positive finite number"):
         model.recognise_batch(vision[:3], motor[:3], motor_weight=0.0)
+
+
+def test_heading_sectors_split_the_posterior_components_and_keep_the_units_sums(
+    learned, counted, tmp_path
+):
+    """With ``pose_heading_bins`` B each word-and-unit component is split by the heading sector
+    of its samples (sector 0 centred on 0 deg): the counts per unit are those of one sector
+    (so recognition is unchanged), each sample lands in its sector, and the posterior read-out
+    mixes the sector components by their pose posterior (checked by hand); B is saved, refused
+    outside [1, 24], and a file saved before it existed loads with B = 1."""
+    _, _, stream, (vision, _, motor, _) = learned
+    _, train_stream, (train_vision, language, train_motor, _) = counted
+
+    def recounted(bins: int) -> HierarchicalAssociator:
+        model = copy.deepcopy(counted[0])
+        model.pose_heading_bins = bins
+        for name in (
+            "word_samples_",
+            "word_pose_sums_",
+            "word_pose_squares_",
+            "word_motor_counts_",
+        ):
+            delattr(model, name)
+        return model.count_word_statistics(train_vision, language, train_motor)
+
+    whole, split = recounted(1), recounted(4)
+    n_words, n_hidden = len(WORDS), split.lower_.n_hidden
+    assert split.word_samples_.shape == (n_words, n_hidden * 4)
+    for mine, theirs in zip(split._unit_statistics(), whole._unit_statistics(), strict=True):
+        np.testing.assert_allclose(mine, theirs, rtol=1e-12, atol=1e-9)
+    # Each sample in the sector of its heading: headings within 45 deg of 0 in sector 0, etc.
+    winners = split.recognise_batch(train_vision, train_motor).winners
+    heading = (vision_code_centres(train_vision)[:, 2] - 12) * 15.0  # degrees, unit 12 is 0 deg
+    sector = np.round(((heading + 180) % 360 - 180) / 90.0).astype(int) % 4
+    samples = np.zeros_like(split.word_samples_)
+    np.add.at(samples, (train_stream.word, winners * 4 + sector), 1)
+    np.testing.assert_array_equal(split.word_samples_, samples)
+    a = split.recognise_sequence(vision[:300], motor[:300])
+    b = whole.recognise_sequence(vision[:300], motor[:300])
+    np.testing.assert_array_equal(a.words, b.words)
+    np.testing.assert_allclose(a.scores, b.scores, rtol=1e-9)
+    # The posterior read-out over the sector components, by hand.
+    words = [WORDS[i] for i in stream.word[:300]]
+    out = split.perform_batch(vision[:300], words)
+    counts = split.word_motor_counts_
+    table = counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
+    for i in range(0, 300, 30):
+        word = stream.word[i]
+        pose = split._pose_log_likelihoods(vision[i : i + 1], np.array([word]), per_unit=False)[0]
+        assert pose.shape == (n_hidden * 4,)
+        weights = np.exp(np.where(np.isfinite(pose), pose - pose[np.isfinite(pose)].max(), -np.inf))
+        weights /= weights.sum()
+        np.testing.assert_allclose(out.motor[i], weights @ table[word], rtol=1e-9, atol=1e-12)
+        assert out.winners[i] == np.argmax(weights) // 4
+    assert np.abs(out.motor - whole.perform_batch(vision[:300], words).motor).max() > 0.05
+    # Saved and loaded with its sectors; older files load with one sector.
+    path = persistence.save(split, tmp_path / "h.npz")
+    loaded = persistence.load(path)
+    assert loaded.pose_heading_bins == 4
+    np.testing.assert_array_equal(loaded.perform_batch(vision[:300], words).motor, out.motor)
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    own = json.loads(str(arrays["hierarchy_params"]))
+    own["pose_heading_bins"] = 2
+    np.savez(tmp_path / "wrong.npz", **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
+    with pytest.raises(ValueError, match=r"word_samples has shape \(3, 768\), expected \(3, 384\)"):
+        persistence.load(tmp_path / "wrong.npz")
+    with np.load(persistence.save(whole, tmp_path / "w.npz")) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    own = json.loads(str(arrays["hierarchy_params"]))
+    own.pop("pose_heading_bins")
+    np.savez(tmp_path / "old.npz", **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
+    assert persistence.load(tmp_path / "old.npz").pose_heading_bins == 1
+    for bad in (0, 25, 2.5):
+        with pytest.raises(
+            ValueError, match=f"pose_heading_bins must be a whole number in \\[1, 24\\], got {bad}"
+        ):
+            HierarchicalAssociator(pose_heading_bins=bad).validate_params()

@@ -168,7 +168,7 @@ def _entries(path) -> dict:
 
 
 def _cells(entries):
-    """Returns a (word, unit) cell counted more than once away from x = 0, and an empty one."""
+    """Returns a (word, component) cell counted more than once away from x = 0, and an empty one."""
     samples, sums = entries["word_samples"], entries["word_pose_sums"]
     full = (samples > 1) & (sums[..., 0] > 1.0)
     return tuple(np.argwhere(full)[0]), tuple(np.argwhere(samples == 0)[0])
@@ -194,7 +194,7 @@ def _lying(entries) -> dict:
     return {
         "pose sums without samples": (
             changed("word_pose_sums", (*empty, 0), 3.0),
-            r"word_pose_sums is not zero at \(word '\w+', unit \d+\), where word_samples counts no",
+            r"word_pose_sums is not zero at \(word '\w+', component \d+\), where word_samples counts no",
         ),
         "pose squares without samples": (
             changed("word_pose_squares", (*empty, 1), 9.0),
