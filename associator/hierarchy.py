@@ -749,21 +749,21 @@ class HierarchicalAssociator:
                 motor[part] = motor_td[winners[part]]
                 continue
             if self.perform_readout == "posterior":
-                pose = self._pose_log_likelihoods(v, w, per_unit=False)
-            else:
-                pose = self._pose_log_likelihoods(v, w)
-            counted = np.isfinite(pose).any(axis=1)  # the word has components to choose from
-            if self.perform_readout == "posterior" and np.any(counted):
+                sectors = self._pose_log_likelihoods(v, w, per_unit=False)
+                counted = np.isfinite(sectors).any(axis=1)  # the word has components to mix
                 rows = np.flatnonzero(counted)
-                posterior, motor[start + rows] = self._mix_directives(
-                    pose[rows], w[rows], self.word_motor_counts_
-                )
-                # The most probable component's unit.
-                winners[start + rows] = posterior.argmax(axis=1) // int(self.pose_heading_bins)
-                rest = np.flatnonzero(~counted)
+                if len(rows):
+                    posterior, motor[start + rows] = self._mix_directives(
+                        sectors[rows], w[rows], self.word_motor_counts_
+                    )
+                    # The most probable component's unit.
+                    winners[start + rows] = posterior.argmax(axis=1) // int(self.pose_heading_bins)
+                rest = np.flatnonzero(~counted)  # words without counted components: the lower W_td
                 winners[start + rest] = activation[rest].argmax(axis=1)
                 motor[start + rest] = motor_td[winners[start + rest]]
                 continue
+            pose = self._pose_log_likelihoods(v, w)
+            counted = np.isfinite(pose).any(axis=1)  # the word has components to choose from
             activation[counted] += self.pose_weight * pose[counted]
             k = activation.argmax(axis=1)
             winners[part] = k

@@ -711,6 +711,16 @@ def test_heading_sectors_split_the_posterior_components_and_keep_the_units_sums(
     own.pop("pose_heading_bins")
     np.savez(tmp_path / "old.npz", **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
     assert persistence.load(tmp_path / "old.npz").pose_heading_bins == 1
+    # A word none of whose components was counted often enough performs from the lower W_td, as
+    # before counting (a short training stream split into 24 sectors leaves words so).
+    sparse = recounted(24)
+    sparse.min_word_samples = 10**9
+    bare = learned[0]  # never counted
+    assert not bare.has_word_statistics_
+    np.testing.assert_array_equal(
+        sparse.perform_batch(vision[:300], words).motor,
+        bare.perform_batch(vision[:300], words).motor,
+    )
     for bad in (0, 25, 2.5):
         with pytest.raises(
             ValueError, match=f"pose_heading_bins must be a whole number in \\[1, 24\\], got {bad}"
