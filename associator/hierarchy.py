@@ -70,7 +70,8 @@ _LEARNED = (
 )
 
 
-#: Samples performed at a time in ``perform_batch`` (its work arrays are chunk x n_hidden).
+#: Samples performed at a time in ``perform_batch`` with one heading sector (its work arrays are
+#: chunk x n_hidden; with B sectors it takes chunk / B samples at a time).
 _PERFORM_CHUNK = 4096
 
 
@@ -739,8 +740,10 @@ class HierarchicalAssociator:
         motor_td = lower.readout_tables().motor / self.motor_gain
         winners = np.empty(n, np.int64)
         motor = np.empty((n, N_MOTOR))
-        for start in range(0, n, _PERFORM_CHUNK):  # bounded memory: (chunk, n_hidden) at a time
-            part = slice(start, min(start + _PERFORM_CHUNK, n))
+        # Bounded memory: (chunk, n_hidden x pose_heading_bins) at a time.
+        chunk = max(1, _PERFORM_CHUNK // int(self.pose_heading_bins))
+        for start in range(0, n, chunk):
+            part = slice(start, min(start + chunk, n))
             v, w = vision[part], word_index[part]
             lengths = np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
             activation = (v / lengths) @ w_vision.T + log_links[w]
