@@ -446,13 +446,6 @@ class HierarchicalAssociator:
         """Returns the word statistics per word and lower unit (n_words, n_hidden, ...): samples,
         pose sums, pose squares and directive counts, summed over the heading sectors."""
         bins = int(self.pose_heading_bins)
-        if bins == 1:
-            return (
-                self.word_samples_,
-                self.word_pose_sums_,
-                self.word_pose_squares_,
-                self.word_motor_counts_,
-            )
         n_words, n_hidden = len(self.vocabulary), self.lower_.n_hidden
         return tuple(
             values.reshape(n_words, n_hidden, bins, *values.shape[2:]).sum(axis=2)
