@@ -90,8 +90,9 @@ class TeacherConfig:
         of its speed set-points (0: none, the speeds change at once, as in the simulated robot by
         default). Given, the funnel docking and the squaring stop commanding motion once the
         robot, braking at that limit from its measured speed, would come to rest at the dock or
-        square (a real controller configured for its robot; ``imitation.trials`` gives the
-        reference teacher the perturbed robot's limits).
+        square, and 'go' wants, ahead of the robot, the clearance to an obstacle plus the
+        distance braking takes (a real controller configured for its robot; ``imitation.trials``
+        gives the reference teacher the perturbed robot's limits).
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
       slip_rate_per_s: disturbances per second of each behaviour (a Poisson rate; 0: none). In
@@ -368,12 +369,20 @@ class Teacher:
             dx, dy = student[0] - x, student[1] - y
             yield math.hypot(dx, dy) - self.config.student_radius_m, math.atan2(dy, dx)
 
+    def _stopping_distance_m(self) -> float:
+        """Returns how far the robot rolls on, metres, braking now from its measured forward speed
+        at ``robot_linear_accel_mps2`` (0 without a limit: the speeds change at once)."""
+        a = self.config.robot_linear_accel_mps2
+        return self._speed_mps**2 / (2.0 * a) if a > 0 and self._speed_mps > 0 else 0.0
+
     def _blocking_obstacle(self, x, y, yaw, student):
-        """Returns the bearing of the most pressing obstacle the robot must turn away from, or None."""
+        """Returns the bearing of the most pressing obstacle the robot must turn away from, or None
+        (ahead of the robot the clearance wanted grows by the distance it needs to stop)."""
         c = self.config
         worst, bearing = 0.0, None
+        ahead = c.lookahead_m + self._stopping_distance_m()
         for distance, b in self._obstacles(x, y, student):
-            need = c.turn_radius_m + c.lookahead_m * max(0.0, math.cos(b - yaw))
+            need = c.turn_radius_m + ahead * max(0.0, math.cos(b - yaw))
             if distance < need and need - distance > worst:
                 worst, bearing = need - distance, b
         return bearing
@@ -600,9 +609,8 @@ class Teacher:
         lateral, depth = x - dock_x, dock_y - y
         if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m:
             return None
-        if c.robot_linear_accel_mps2 > 0 and self._speed_mps > 0:
-            # Braking now, the robot rolls on this far: done if it comes to rest at the dock.
-            reach = self._speed_mps**2 / (2.0 * c.robot_linear_accel_mps2)
+        reach = self._stopping_distance_m()
+        if reach > 0:  # braking now, the robot rolls on this far: done if it rests at the dock
             for f in np.linspace(0.0, 1.0, 11)[1:]:
                 lx, d = lateral + f * reach * math.cos(yaw), depth - f * reach * math.sin(yaw)
                 if d <= 0.015 and abs(lx) <= c.funnel_tolerance_m:

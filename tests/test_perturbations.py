@@ -408,3 +408,26 @@ def test_the_reference_teacher_docks_under_aria_accelerations_by_braking_ahead()
     rolled = performance.run_trial(env, blind, "pick", item.start, item.wall)
     env.close()
     assert not rolled.success, rolled.reason
+
+
+def test_the_reference_teacher_goes_under_half_aria_accelerations_by_braking_before_walls():
+    """In 'go' the teacher told the robot's acceleration limits wants, ahead of it, the clearance
+    to a wall plus the distance it rolls on while braking (0.35 m/s at 0.15 m/s^2: 0.41 m), so it
+    turns away in time; told none, from the same start it rolls into the wall's clearance, where
+    every heading is blocked, and turns in place until the trial ends."""
+    base = run_config.RunConfig().replace(
+        {f"perturbations.{k}": v for k, v in pt.FAMILIES["acceleration"][3].items()}
+    )
+    env = trials.student_environment(base)
+    item = [p for p in trials.trial_plan(base, ("teacher",)) if p.row == "go"][0]
+    braking = trials.run_planned_trial(base, env, item, "teacher", None, None)
+    assert braking.success, braking.reason
+    blind = trials.make_agent(base, "teacher", "go", env, None, None, rng=[0, 0, item.index])
+    blind.teacher_config = dataclasses.replace(
+        blind.teacher_config, robot_linear_accel_mps2=0.0, robot_yaw_accel_degps2=0.0
+    )
+    blind.reset()
+    stuck = performance.run_trial(env, blind, "go", item.start, item.wall)
+    env.close()
+    assert not stuck.success
+    assert stuck.reason.startswith("drove under 0.2 m"), stuck.reason
