@@ -384,6 +384,24 @@ def test_results_md_names_the_perturbations_a_run_turned_on():
     assert "actuation.linear_accel_mps2 = 0.3" in keys and len(keys) == 14
 
 
+def _teacher_told_and_blind(level: dict, row: str, index: int):
+    """Returns the reference teacher's trial of ``row``'s start ``index`` on a robot with the
+    acceleration ``level``, told the limits and told none (as before version 0.5.0)."""
+    base = run_config.RunConfig().replace({f"perturbations.{k}": v for k, v in level.items()})
+    env = trials.student_environment(base)
+    item = [p for p in trials.trial_plan(base, ("teacher",)) if p.row == row][index]
+    told = trials.run_planned_trial(base, env, item, "teacher", None, None)
+    rng = [0, performance.ROWS.index(row), item.index]
+    blind = trials.make_agent(base, "teacher", row, env, None, None, rng=rng)
+    blind.teacher_config = dataclasses.replace(
+        blind.teacher_config, robot_linear_accel_mps2=0.0, robot_yaw_accel_degps2=0.0
+    )
+    blind.reset()
+    untold = performance.run_trial(env, blind, row, item.start, item.wall)
+    env.close()
+    return told, untold
+
+
 def test_the_reference_teacher_docks_under_aria_accelerations_by_braking_ahead():
     """Told the robot's acceleration limits (``trials.reference_teacher_config``), the teacher's
     funnel docking stops commanding motion once braking would bring the robot to rest at the dock
@@ -395,18 +413,9 @@ def test_the_reference_teacher_docks_under_aria_accelerations_by_braking_ahead()
     told = trials.reference_teacher_config(base)
     assert (told.robot_linear_accel_mps2, told.robot_yaw_accel_degps2) == (0.3, 100.0)
     assert trials.reference_teacher_config(run_config.RunConfig()) == run_config.RunConfig().teacher
-    env = trials.student_environment(base)
-    plan = [p for p in trials.trial_plan(base, ("teacher",)) if p.row == "pick"]
-    item = plan[9]  # a straight approach, at full speed into the dock
-    braking = trials.run_planned_trial(base, env, item, "teacher", None, None)
+    # Start 9: a straight approach, at full speed into the dock.
+    braking, rolled = _teacher_told_and_blind(pt.ARIA_ACCELERATION, "pick", 9)
     assert braking.success, braking.reason
-    blind = trials.make_agent(base, "teacher", "pick", env, None, None, rng=[0, 1, item.index])
-    blind.teacher_config = dataclasses.replace(
-        blind.teacher_config, robot_linear_accel_mps2=0.0, robot_yaw_accel_degps2=0.0
-    )
-    blind.reset()
-    rolled = performance.run_trial(env, blind, "pick", item.start, item.wall)
-    env.close()
     assert not rolled.success, rolled.reason
 
 
@@ -415,19 +424,7 @@ def test_the_reference_teacher_goes_under_half_aria_accelerations_by_braking_bef
     to a wall plus the distance it rolls on while braking (0.35 m/s at 0.15 m/s^2: 0.41 m), so it
     turns away in time; told none, from the same start it rolls into the wall's clearance, where
     every heading is blocked, and turns in place until the trial ends."""
-    base = run_config.RunConfig().replace(
-        {f"perturbations.{k}": v for k, v in pt.FAMILIES["acceleration"][3].items()}
-    )
-    env = trials.student_environment(base)
-    item = [p for p in trials.trial_plan(base, ("teacher",)) if p.row == "go"][0]
-    braking = trials.run_planned_trial(base, env, item, "teacher", None, None)
+    braking, stuck = _teacher_told_and_blind(pt.FAMILIES["acceleration"][3], "go", 0)
     assert braking.success, braking.reason
-    blind = trials.make_agent(base, "teacher", "go", env, None, None, rng=[0, 0, item.index])
-    blind.teacher_config = dataclasses.replace(
-        blind.teacher_config, robot_linear_accel_mps2=0.0, robot_yaw_accel_degps2=0.0
-    )
-    blind.reset()
-    stuck = performance.run_trial(env, blind, "go", item.start, item.wall)
-    env.close()
     assert not stuck.success
     assert stuck.reason.startswith("drove under 0.2 m"), stuck.reason
