@@ -740,23 +740,19 @@ class HierarchicalAssociator:
             v, w = vision[part], word_index[part]
             lengths = np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)
             activation = (v / lengths) @ w_vision.T + log_links[w]
+            # Before counting, and for words without counted components: the lower W_td.
+            winners[part] = activation.argmax(axis=1)
+            motor[part] = motor_td[winners[part]]
             if not self.has_word_statistics_:
-                winners[part] = activation.argmax(axis=1)
-                motor[part] = motor_td[winners[part]]
                 continue
             if self.perform_readout == "posterior":
                 sectors = self._pose_log_likelihoods(v, w, per_unit=False)
-                counted = np.isfinite(sectors).any(axis=1)  # the word has components to mix
-                rows = np.flatnonzero(counted)
-                if len(rows):
-                    posterior, motor[start + rows] = self._mix_directives(
-                        sectors[rows], w[rows], self.word_motor_counts_
-                    )
-                    # The most probable component's unit.
-                    winners[start + rows] = posterior.argmax(axis=1) // int(self.pose_heading_bins)
-                rest = np.flatnonzero(~counted)  # words without counted components: the lower W_td
-                winners[start + rest] = activation[rest].argmax(axis=1)
-                motor[start + rest] = motor_td[winners[start + rest]]
+                rows = np.flatnonzero(np.isfinite(sectors).any(axis=1))  # components to mix
+                posterior, motor[start + rows] = self._mix_directives(
+                    sectors[rows], w[rows], self.word_motor_counts_
+                )
+                # The most probable component's unit.
+                winners[start + rows] = posterior.argmax(axis=1) // int(self.pose_heading_bins)
                 continue
             pose = self._pose_log_likelihoods(v, w)
             counted = np.isfinite(pose).any(axis=1)  # the word has components to choose from
