@@ -25,8 +25,8 @@ from dm_control import mjcf
 
 from imitation import storage
 from imitation.results import package_versions
-from peoplebot_sim import directives
-from peoplebot_sim.task import ImitationTask, TaskConfig
+from peoplebot_sim import directives, hardware
+from peoplebot_sim.task import ImitationTask, TaskConfig, teacher_actuation
 from perception.wallframe import world_to_wall, world_to_wall_batch
 
 _QPOS_SIZE = {0: 7, 1: 4, 2: 1, 3: 1}  # free, ball, slide, hinge
@@ -185,7 +185,14 @@ class StreamGenerator:
         self._student = self.task.student.planar_pose(self.physics)
         self._substeps = int(round(config.control_timestep / config.physics_timestep))
         self._dt = config.control_timestep
-        self._commands = {d: config.drive.command(d) for d in directives.DIRECTIVES}
+        self._commands = {
+            d: np.asarray(config.drive.command(d), dtype=float) for d in directives.DIRECTIVES
+        }
+        self._filter = None  # the teacher robot's firmware, as in ``ImitationTask``
+        if teacher_actuation(config.teacher).active:
+            self._filter = hardware.CommandFilter(
+                teacher_actuation(config.teacher), config.physics_timestep
+            )
         self._previous = None
         self.steps_done = 0
 
@@ -200,6 +207,7 @@ class StreamGenerator:
             "teacher": self.task.teacher_controller.get_state(),
             "previous": self._previous,
             "steps_done": self.steps_done,
+            **({} if self._filter is None else {"setpoint": self._filter.setpoint.tolist()}),
         }
 
     def set_state(self, state: dict) -> None:
@@ -216,12 +224,31 @@ class StreamGenerator:
         self.task.teacher_controller.set_state(state["teacher"])
         self._previous = state["previous"]
         self.steps_done = int(state["steps_done"])
+        if self._filter is not None:
+            if "setpoint" not in state:
+                raise ValueError("stream state lacks the teacher robot's firmware set-point")
+            self._filter.setpoint = np.asarray(state["setpoint"], dtype=float)
 
     def teacher_pose(self) -> np.ndarray:
         """Returns the teacher's ``[x, y, yaw]`` (m, m, rad), world frame."""
         # From the free joint's qpos: current after mj_step (xpos lags one physics step behind).
         x, y, _, w, qx, qy, qz = self._d.qpos[self._teacher_qpos : self._teacher_qpos + 7]
         return np.array([x, y, np.arctan2(2 * (w * qz + qx * qy), 1 - 2 * (qy * qy + qz * qz))])
+
+    def _step_physics(self, command: np.ndarray) -> None:
+        """Runs one control step's physics steps with the teacher's wheel ``command`` (linear m/s,
+        yaw rad/s), through its firmware's acceleration limits when it has them (one physics
+        step at a time while the set-points ramp, as ``ImitationTask.before_substep`` does)."""
+        m, d, ctrl = self._m, self._d, self._d.ctrl
+        remaining = self._substeps
+        if self._filter is not None:
+            while remaining and not np.array_equal(self._filter.setpoint, command):
+                ctrl[self._forward], ctrl[self._turn] = self._filter.step(command)
+                mujoco.mj_step(m, d, 1)
+                remaining -= 1
+        if remaining:
+            ctrl[self._forward], ctrl[self._turn] = command
+            mujoco.mj_step(m, d, remaining)
 
     def generate(self, n_steps: int, progress=None) -> TeacherStream:
         """Runs ``n_steps`` control steps and returns their stream; ``progress`` is called with each
@@ -235,15 +262,13 @@ class StreamGenerator:
         changed = np.empty(n_steps, bool)
         teacher = self.task.teacher_controller
         geometry = self.task.geometry
-        m, d, ctrl = self._m, self._d, self._d.ctrl
+        d = self._d
         word_ids = {w: i for i, w in enumerate(directives.WORDS)}
         directive_ids = {w: i for i, w in enumerate(directives.DIRECTIVES)}
         for i in range(n_steps):
             pose = self.teacher_pose()
             name = teacher.step(pose, self._student, self._dt)
-            linear, turn = self._commands[teacher.executed]  # the wheels: a disturbance's turn
-            ctrl[self._forward] = linear
-            ctrl[self._turn] = turn
+            command = self._commands[teacher.executed]  # the wheels: a disturbance's turn
             wall = world_to_wall(pose[0], pose[1], pose[2], geometry)
             pose_world[i] = pose
             pose_wall[i] = (wall.x_m, wall.y_m, wall.phi_deg)
@@ -253,7 +278,7 @@ class StreamGenerator:
             self._previous = name
             d.qpos[self._frozen_qpos] = self._frozen_values
             d.qvel[self._frozen_dof] = 0.0
-            mujoco.mj_step(m, d, self._substeps)
+            self._step_physics(command)
             if progress is not None and (i + 1) % 1000 == 0:
                 progress(1000)
         if progress is not None:

@@ -124,13 +124,14 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
 
 def reference_teacher_config(config: RunConfig):
     """Returns the teacher settings the reference row performs with: the run's, told the
-    perturbed robot's acceleration limits (a real controller is configured for its robot)."""
+    acceleration limits of the robot it drives, the student's (``[perturbations.actuation]``;
+    a real controller is configured for its robot), not those of the robot that recorded the
+    demonstrations."""
     actuation = config.perturbations.actuation
-    teacher = config.teacher
     return dataclasses.replace(
-        teacher,
-        robot_linear_accel_mps2=actuation.linear_accel_mps2 or teacher.robot_linear_accel_mps2,
-        robot_yaw_accel_degps2=actuation.yaw_accel_degps2 or teacher.robot_yaw_accel_degps2,
+        config.teacher,
+        robot_linear_accel_mps2=actuation.linear_accel_mps2,
+        robot_yaw_accel_degps2=actuation.yaw_accel_degps2,
     )
 
 

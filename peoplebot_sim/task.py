@@ -26,6 +26,16 @@ CAMERA_NAMES = ("overhead", "head")
 STUDENT_WATCH_POSE = (-1.45, -1.45, math.pi / 4)
 
 
+def teacher_actuation(teacher: TeacherConfig) -> hardware.Actuation:
+    """Returns the teacher robot's command path: the firmware's acceleration limits its controller
+    is told (``TeacherConfig.robot_linear_accel_mps2``, ``robot_yaw_accel_degps2``; 0: none), so
+    the demonstrations are recorded on a robot that has them."""
+    return hardware.Actuation(
+        linear_accel_mps2=teacher.robot_linear_accel_mps2,
+        yaw_accel_degps2=teacher.robot_yaw_accel_degps2,
+    )
+
+
 def start_pose(name: str, pose, arena: ArenaGeometry) -> tuple[float, float, float]:
     """Returns a robot's start ``pose`` ``(x m, y m, yaw rad)`` as a tuple of floats; raises
     ValueError naming ``name`` unless it is an array-like of three finite numbers that puts the
@@ -190,6 +200,12 @@ class ImitationTask(composer.Task):
         self._command_filter = None
         if config.actuation.active:
             self._command_filter = hardware.CommandFilter(config.actuation, config.physics_timestep)
+        self._teacher_filter = None  # the teacher robot's firmware (``teacher_actuation``)
+        if config.with_teacher and teacher_actuation(config.teacher).active:
+            self._teacher_filter = hardware.CommandFilter(
+                teacher_actuation(config.teacher), config.physics_timestep
+            )
+        self._teacher_command = np.zeros(2)
         self._task_observables = self._make_observables()
 
     # ------------------------------------------------------------------ entities
@@ -340,6 +356,9 @@ class ImitationTask(composer.Task):
         self._last_directive = self.teacher_controller.directive
         if self._command_filter is not None:
             self._command_filter.reset()
+        if self._teacher_filter is not None:
+            self._teacher_filter.reset()
+        self._teacher_command = np.zeros(2)
         self.collisions = 0
         self._in_contact = False
 
@@ -380,10 +399,15 @@ class ImitationTask(composer.Task):
 
     def before_substep(self, physics, action, random_state):
         """Passes the student's wheel command through its firmware's command path
-        (``TaskConfig.actuation``), once per physics step; nothing when it is nominal."""
+        (``TaskConfig.actuation``), and the teacher's through its own (``teacher_actuation``),
+        once per physics step; nothing for a robot that is nominal."""
         if self._command_filter is not None:
             setpoint = self._command_filter.step(np.asarray(action, dtype=float)[:2])
             physics.data.ctrl[self._actuator_ids(physics)[:2]] = setpoint
+        if self._teacher_filter is not None:
+            self._actuator_ids(physics)
+            setpoint = self._teacher_filter.step(self._teacher_command)
+            physics.data.ctrl[list(self._teacher_ids)] = setpoint
 
     def _actuator_ids(self, physics) -> np.ndarray:
         key = id(physics.model.ptr)
@@ -409,7 +433,9 @@ class ImitationTask(composer.Task):
         )
         self._actuator_ids(physics)
         executed = self.teacher_controller.executed  # the wheels: a disturbance's turn, if any
-        physics.data.ctrl[list(self._teacher_ids)] = self.config.drive.command(executed)
+        self._teacher_command = np.asarray(self.config.drive.command(executed), dtype=float)
+        if self._teacher_filter is None:  # else the firmware sets the servos each physics step
+            physics.data.ctrl[list(self._teacher_ids)] = self._teacher_command
         self._last_directive = directive
         return directive
 

@@ -91,8 +91,10 @@ class TeacherConfig:
         default). Given, the funnel docking and the squaring stop commanding motion once the
         robot, braking at that limit from its measured speed, would come to rest at the dock or
         square, and 'go' wants, ahead of the robot, the clearance to an obstacle plus the
-        distance braking takes (a real controller configured for its robot; ``imitation.trials``
-        gives the reference teacher the perturbed robot's limits).
+        distance braking takes (a real controller configured for its robot). The teacher's own
+        robot has these limits (``task.teacher_actuation``: in the task and in the recorded
+        streams, so demonstrations can be recorded under them); ``imitation.trials`` gives the
+        reference teacher the limits of the robot it drives, the student's.
       lift_backoff_m: 'lift' backs away this far from the docked pose.
       face_centre_tol_deg: 'lift' turns until the centre is this close to straight ahead.
       slip_rate_per_s: disturbances per second of each behaviour (a Poisson rate; 0: none). In

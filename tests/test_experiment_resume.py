@@ -15,6 +15,7 @@ from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from imitation import learning, streams
 from imitation.streams import TeacherStream, generate_resumable
+from peoplebot_sim.task import TaskConfig
 from perception.wallframe import ArenaGeometry
 
 ARENA = ArenaGeometry()
@@ -272,13 +273,18 @@ def test_a_stream_of_other_settings_is_never_reused(tmp_path):
     assert len(longer) == 80
 
 
-def test_stream_generator_state_round_trip():
-    """get_state after k steps, set_state into a fresh generator: the next steps are identical;
-    a different seed gives a different stream (the comparison can fail)."""
-    a = streams.StreamGenerator(5)
+@pytest.mark.parametrize("accel", [0.0, 0.05])
+def test_stream_generator_state_round_trip(accel):
+    """get_state after k steps, set_state into a fresh generator: the next steps are identical
+    (also with the teacher robot's firmware ramping its set-points, whose state is kept); a
+    different seed gives a different stream (the comparison can fail)."""
+    teacher = dataclasses.replace(TaskConfig().teacher, robot_linear_accel_mps2=accel)
+    a = streams.StreamGenerator(5, TaskConfig(teacher=teacher))
     a.generate(150)
     state = json.loads(json.dumps(a.get_state()))  # as written to disk
-    b = streams.StreamGenerator(5)
+    if accel:  # caught while the forward set-point ramps (7 s from rest to full speed)
+        assert 0.0 < abs(state["setpoint"][0]) < 0.34
+    b = streams.StreamGenerator(5, TaskConfig(teacher=teacher))
     b.set_state(state)
     next_a, next_b = a.generate(250), b.generate(250)
     np.testing.assert_array_equal(next_a.pose_world, next_b.pose_world)

@@ -413,6 +413,9 @@ def test_the_reference_teacher_docks_under_aria_accelerations_by_braking_ahead()
     told = trials.reference_teacher_config(base)
     assert (told.robot_linear_accel_mps2, told.robot_yaw_accel_degps2) == (0.3, 100.0)
     assert trials.reference_teacher_config(run_config.RunConfig()) == run_config.RunConfig().teacher
+    # Demonstrations recorded under limits, a nominal student robot: the reference is told none.
+    recorded = run_config.RunConfig().replace({"teacher.robot_linear_accel_mps2": 0.3})
+    assert trials.reference_teacher_config(recorded).robot_linear_accel_mps2 == 0.0
     # Start 9: a straight approach, at full speed into the dock.
     braking, rolled = _teacher_told_and_blind(pt.ARIA_ACCELERATION, "pick", 9)
     assert braking.success, braking.reason
@@ -428,3 +431,42 @@ def test_the_reference_teacher_goes_under_half_aria_accelerations_by_braking_bef
     assert braking.success, braking.reason
     assert not stuck.success
     assert stuck.reason.startswith("drove under 0.2 m"), stuck.reason
+
+
+# ----------------------------------------------------------------------- demonstrations under limits
+def _teacher_accelerations(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Returns the forward (m/s^2) and yaw (deg/s^2) accelerations, from one control step to the
+    next, of a robot's world poses (n, 3) sampled each control step."""
+    step = np.diff(poses[:, :2], axis=0)
+    heading = poses[:-1, 2]
+    forward = (step[:, 0] * np.cos(heading) + step[:, 1] * np.sin(heading)) / DT
+    yaw_rate = np.degrees(np.diff(np.unwrap(poses[:, 2]))) / DT
+    return np.diff(forward) / DT, np.diff(yaw_rate) / DT
+
+
+def test_demonstrations_are_recorded_on_a_teacher_robot_with_its_firmware_limits():
+    """A teacher told ARIA's limits (``teacher.robot_*_accel``) drives a robot that has them, in
+    the recorded stream and in the task alike (the same motion): its measured accelerations stay
+    within 0.3 m/s^2 and 100 deg/s^2 (15% for the averaging over a control step) but at the
+    switches between driving and turning, where the servos' lag lets one control step reach
+    about twice that; the nominal teacher's jump past 2 m/s^2 and 600 deg/s^2."""
+    from imitation.streams import StreamGenerator
+
+    limited = dataclasses.replace(
+        TaskConfig().teacher, robot_linear_accel_mps2=0.3, robot_yaw_accel_degps2=100.0
+    )
+    for teacher, capped in ((TaskConfig().teacher, False), (limited, True)):
+        config = TaskConfig(teacher=teacher)
+        recorded = StreamGenerator(4, config).generate(400).pose_world.astype(float)
+        env = load(config, seed=4)
+        env.reset()
+        watched = [env.step(np.zeros(6)).observation["teacher_pose"] for _ in range(400)]
+        env.close()
+        np.testing.assert_allclose(np.asarray(watched)[:-1], recorded[1:], atol=1e-4)
+        linear, yaw = _teacher_accelerations(recorded)
+        if capped:
+            assert np.mean(np.abs(linear) <= 0.3 * 1.15) >= 0.9
+            assert np.mean(np.abs(yaw) <= 100.0 * 1.15) >= 0.9
+            assert np.max(np.abs(linear)) <= 0.3 * 2.5 and np.max(np.abs(yaw)) <= 100.0 * 2.5
+        else:
+            assert np.max(np.abs(linear)) > 2.0 and np.max(np.abs(yaw)) > 600.0
