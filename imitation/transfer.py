@@ -486,10 +486,18 @@ def _summary(source, base: RunConfig, families, rows, results: dict, policies=PO
         "trials_per_row": base.performance.trials,
         "cells": len(results),
         "cpu_seconds": sum(sum(r.cpu_seconds.values()) for r in results.values()),
-        "recognition_steps": base.vision.test_steps,
+        "recognition_steps": _recognition_steps(base, source),
         "families": per_family,
         "versions": package_versions(),
     }
+
+
+def _recognition_steps(config: RunConfig, source: pathlib.Path) -> int:
+    """Returns how many steps each cell's recognition watched: ``vision.test_steps`` through the
+    camera, or in the 'truth' mode as many of them as the source's test stream has."""
+    if config.vision.mode != "truth":
+        return config.vision.test_steps
+    return min(config.vision.test_steps, len(TeacherStream.load(source / "streams" / "test.npz")))
 
 
 def _pct(value) -> str:

@@ -176,6 +176,16 @@ def test_a_compared_run_appears_in_the_same_report(
     assert "student (randomised) go" in text and "recognition (randomised)" in text
 
 
+def test_the_report_counts_the_recognition_steps_that_were_watched(trained_run):
+    """In the 'truth' mode recognition reads the source's test stream (600 steps here), so a
+    report asked for more says 600; through a camera it watches as many as asked."""
+    config = RunConfig.quick().replace({**TINY, "vision.test_steps": 5000})
+    assert transfer._recognition_steps(config, trained_run) == 600
+    assert transfer._recognition_steps(config.replace({"vision.test_steps": 50}), trained_run) == 50
+    overhead = config.replace({"vision.mode": "overhead"})
+    assert transfer._recognition_steps(overhead, trained_run) == 5000
+
+
 def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
     assert main(["transfer", "--reuse-from", str(tmp_path), "--out", str(tmp_path / "t")]) == 2
     assert "is not a run folder" in capsys.readouterr().err
