@@ -189,10 +189,9 @@ class StreamGenerator:
             d: np.asarray(config.drive.command(d), dtype=float) for d in directives.DIRECTIVES
         }
         self._filter = None  # the teacher robot's firmware, as in ``ImitationTask``
-        if teacher_actuation(config.teacher).active:
-            self._filter = hardware.CommandFilter(
-                teacher_actuation(config.teacher), config.physics_timestep
-            )
+        firmware = teacher_actuation(config.teacher)
+        if firmware.active:
+            self._filter = hardware.CommandFilter(firmware, config.physics_timestep)
         self._previous = None
         self.steps_done = 0
 

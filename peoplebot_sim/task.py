@@ -201,10 +201,9 @@ class ImitationTask(composer.Task):
         if config.actuation.active:
             self._command_filter = hardware.CommandFilter(config.actuation, config.physics_timestep)
         self._teacher_filter = None  # the teacher robot's firmware (``teacher_actuation``)
-        if config.with_teacher and teacher_actuation(config.teacher).active:
-            self._teacher_filter = hardware.CommandFilter(
-                teacher_actuation(config.teacher), config.physics_timestep
-            )
+        teacher_firmware = teacher_actuation(config.teacher)
+        if config.with_teacher and teacher_firmware.active:
+            self._teacher_filter = hardware.CommandFilter(teacher_firmware, config.physics_timestep)
         self._teacher_command = np.zeros(2)
         self._task_observables = self._make_observables()
 
@@ -404,8 +403,7 @@ class ImitationTask(composer.Task):
         if self._command_filter is not None:
             setpoint = self._command_filter.step(np.asarray(action, dtype=float)[:2])
             physics.data.ctrl[self._actuator_ids(physics)[:2]] = setpoint
-        if self._teacher_filter is not None:
-            self._actuator_ids(physics)
+        if self._teacher_filter is not None:  # the ids were looked up in before_step
             setpoint = self._teacher_filter.step(self._teacher_command)
             physics.data.ctrl[list(self._teacher_ids)] = setpoint
 
