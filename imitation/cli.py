@@ -137,6 +137,15 @@ def reproduce_config(args):
     return config.replace(changes)
 
 
+def _randomisation_suffix(chosen) -> str:
+    """Returns the run folder's suffix for a randomisation other than the default one."""
+    from imitation.randomisation import RandomisationConfig
+
+    if chosen == RandomisationConfig():
+        return ""
+    return "-randomised-" + "-".join(chosen.families) if chosen.active else "-unrandomised"
+
+
 def _cmd_reproduce(args) -> int:
     from imitation.reproduce import run
 
@@ -146,7 +155,7 @@ def _cmd_reproduce(args) -> int:
         vision = "head_odometry"
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
         f"{vision}-{config.learning.motor_source}-seed{config.seed}"
-        + ("-randomised" if config.randomisation.active else "")
+        + _randomisation_suffix(config.randomisation)
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
@@ -424,8 +433,8 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="FAMILIES",
         help="domain randomisation while the student learns: the training stream seen through "
         "these perception families (pose_noise, latency, dropout, occlusion, comma-separated, or "
-        "all), each minute drawing every family's level uniformly up to --randomise-level "
-        "(docs/transfer.md); default off",
+        "all; none: off), each minute drawing every family's level uniformly up to "
+        "--randomise-level (docs/transfer.md; default pose_noise,latency)",
     )
     rep.add_argument(
         "--randomise-level",
@@ -551,8 +560,9 @@ def build_parser() -> argparse.ArgumentParser:
     tra.add_argument(
         "--compare-label",
         default=None,
-        help="the compared students' tag, '<policy> (<label>)' (default: 'randomised' for a run "
-        "trained with domain randomisation, else its folder's name)",
+        help="the compared students' tag, '<policy> (<label>)' (default: 'randomised' or "
+        "'unrandomised' when only one of the two runs was trained with domain randomisation, "
+        "else the compared run's folder name)",
     )
     tra.add_argument(
         "--families",

@@ -251,8 +251,7 @@ class RunConfig:
         tested (recognition through the camera, performing, videos); the streams and the
         learning never see them (``imitation.perturbations``; all off by default).
       randomisation: domain randomisation of the training stream: the perception faults the
-        student learns under (``imitation.randomisation``; off by default, and then left out of
-        ``to_dict`` so that runs made before it existed keep their identity).
+        student learns under (``imitation.randomisation``; on by default since version 0.7.0).
     """
 
     seed: int = 0
@@ -320,12 +319,8 @@ class RunConfig:
         }
 
     def to_dict(self) -> dict:
-        """Returns the tree as plain values (tuples as lists), as TOML and JSON hold it; the
-        ``randomisation`` section only when it is on."""
-        tree = _plain(dataclasses.asdict(self))
-        if not self.randomisation.active:
-            del tree["randomisation"]
-        return tree
+        """Returns the tree as plain values (tuples as lists), as TOML and JSON hold it."""
+        return _plain(dataclasses.asdict(self))
 
     @classmethod
     def from_dict(cls, data: dict, base: RunConfig | None = None) -> RunConfig:

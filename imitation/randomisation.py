@@ -13,9 +13,10 @@ last pose seen (a tracker's last estimate), so the stream keeps its length and t
 schedule; the words and the teacher's directives are unchanged. One generator, from the run seed
 (``perturbations.rng_for(seed, "randomisation")``), draws the levels and the faults.
 
-Off by default (no families), and then absent from the configuration's tree, so runs made before
-it existed keep their identity. Everything else (the test-time perturbations, the camera, the
-trials) is unchanged: a randomised run is tested like any other.
+On by default since version 0.7.0 (``pose_noise`` and ``latency`` up to level 3: the setting
+chosen on the tuning seeds, docs/results.md); ``families = []`` (``--randomise none``) turns it
+off. Everything else (the test-time perturbations, the camera, the trials) is unchanged: a
+randomised run is tested like any other.
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ import numpy as np
 from imitation.observers import pose_or_nan
 from imitation.perturbations import FAMILIES, PerceptionFaults, PoseCorruptor, rng_for
 from imitation.streams import TeacherStream
+
+#: The families randomised by default (chosen on the tuning seeds 0 and 1; docs/results.md).
+DEFAULT_FAMILIES = ("pose_noise", "latency")
 
 #: The sections of the perturbations that act on what the student sees while it watches.
 WATCHING_SECTIONS = ("perception",)
@@ -43,26 +47,29 @@ def watching_families() -> tuple[str, ...]:
 
 
 def parse_families(text: str) -> tuple[str, ...]:
-    """Returns the families of ``"pose_noise,latency"`` (``"all"``: every watching family);
-    ValueError listing the allowed ones."""
+    """Returns the families of ``"pose_noise,latency"`` (``"all"``: every watching family;
+    ``"none"``: no randomisation); ValueError listing the allowed ones."""
     allowed = watching_families()
     if text.strip() == "all":
         return allowed
+    if text.strip() == "none":
+        return ()
     names = tuple(name.strip() for name in text.split(",") if name.strip())
     for name in names:
         if name not in allowed:
             raise ValueError(
                 f"--randomise: {name!r} cannot be randomised while the student watches; allowed: "
-                f"{', '.join(allowed)} or all"
+                f"{', '.join(allowed)}, all or none"
             )
     if not names:
-        raise ValueError("--randomise needs at least one family (or all)")
+        raise ValueError("--randomise needs at least one family (or all, or none)")
     return names
 
 
 @dataclasses.dataclass(frozen=True)
 class RandomisationConfig:
-    """Domain randomisation of the training stream (off when ``families`` is empty).
+    """Domain randomisation of the training stream (off when ``families`` is empty; the defaults
+    are the setting chosen on the tuning seeds).
 
     Attributes:
       families: the families randomised (see ``watching_families``), e.g. ("pose_noise",
@@ -72,7 +79,7 @@ class RandomisationConfig:
       segment_s: seconds of the training stream that share one draw of the levels.
     """
 
-    families: tuple = ()
+    families: tuple = DEFAULT_FAMILIES
     upper_level: int = 3
     segment_s: float = 60.0
 

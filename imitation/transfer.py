@@ -349,6 +349,15 @@ def envelope(levels: list, results: list[CellResult], policies=POLICIES) -> dict
     return out
 
 
+def _compare_label(source, compared, folder_name: str) -> str:
+    """Returns the compared students' default tag from the two runs' randomisation settings."""
+    if compared.active and not source.active:
+        return "randomised"
+    if source.active and not compared.active:
+        return "unrandomised"
+    return folder_name
+
+
 def transfer(
     source,
     out,
@@ -376,8 +385,9 @@ def transfer(
     ``address``: a Ray cluster (else ``RAY_ADDRESS``, else a local Ray); ``workers``: cells at
     once; ``compare``: another finished run whose students are tested in the same cells (in
     ``OUT/compare/cells/``, without the teacher) and reported beside these as
-    ``"<policy> (<compare_label>)"`` (default label: 'randomised' for a run trained with domain
-    randomisation, else its folder's name)."""
+    ``"<policy> (<compare_label>)"`` (default label: 'randomised' or 'unrandomised' for a run
+    trained with domain randomisation where the source was not, or the other way round, else its
+    folder's name)."""
     source, out = pathlib.Path(source).resolve(), pathlib.Path(out).resolve()
     settings = {
         "videos.enabled": False,
@@ -398,7 +408,7 @@ def transfer(
         other = source_run(compare).replace({**settings, "vision.mode": base.vision.mode})
         other = dataclasses.replace(other, perturbations=base.perturbations)
         if compare_label is None:
-            compare_label = "randomised" if other.randomisation.active else compare.name
+            compare_label = _compare_label(base.randomisation, other.randomisation, compare.name)
         _, other_cells = plan(other, families, levels)
         todo += [
             (f"compare/{c.name}", compare, out / "compare" / "cells" / c.name, c)

@@ -9,8 +9,8 @@ import pytest
 
 from associator import encoding
 from imitation import randomisation as rd
-from imitation import reproduce
-from imitation.cli import build_parser, reproduce_config
+from imitation import reproduce, transfer
+from imitation.cli import _randomisation_suffix, build_parser, reproduce_config
 from imitation.config import RunConfig
 from imitation.perturbations import FAMILIES
 from imitation.runstate import RunState
@@ -75,7 +75,7 @@ def test_levels_are_drawn_within_range_and_seeded():
 
 def test_a_draw_of_level_zero_is_bit_identical_to_clean():
     stream = _stream()
-    off = rd.RandomisationConfig()
+    off = rd.RandomisationConfig(families=())
     assert not off.active and rd.randomised_stream(stream, off, DT, 0)[0] is stream
     zero = rd.RandomisationConfig(families=tuple(rd.watching_families()), upper_level=0)
     seen, faults = rd.randomised_stream(stream, zero, DT, 0)
@@ -89,13 +89,18 @@ def test_a_randomised_run_trains_on_the_randomised_stream_and_keeps_its_own_fold
     tmp_path, monkeypatch
 ):
     config = RunConfig.quick().replace(
-        {"learning.train_steps": 1000, "hierarchical.enabled": False, "workers": 1}
+        {
+            "learning.train_steps": 1000,
+            "hierarchical.enabled": False,
+            "workers": 1,
+            "randomisation.families": [],
+        }
     )
     randomised = config.replace({"randomisation.families": ["dropout"]})
-    # Off: the section is not in the tree, so run folders made before it existed keep their
-    # identity; on: it is, and a folder of the other is refused.
-    assert "randomisation" not in config.to_dict()
+    # Both trees hold the section, and a folder made with the other is refused.
+    assert config.to_dict()["randomisation"]["families"] == []
     assert randomised.to_dict()["randomisation"]["families"] == ["dropout"]
+    assert RunConfig.from_dict(json.loads(json.dumps(config.to_dict()))) == config
     assert RunConfig.from_dict(json.loads(json.dumps(randomised.to_dict()))) == randomised
     RunState(tmp_path / "run", config.to_dict()).close()
     with pytest.raises(ValueError, match="randomisation"):
@@ -126,6 +131,25 @@ def test_a_randomised_run_trains_on_the_randomised_stream_and_keeps_its_own_fold
         for k in networks["clean"].files
         if networks["clean"][k].dtype != object and k != "metadata"
     )
+
+
+def test_the_default_randomises_pose_noise_and_latency_and_none_turns_it_off():
+    assert RunConfig().randomisation == rd.RandomisationConfig(("pose_noise", "latency"), 3)
+    assert RunConfig.quick().randomisation.active
+    default = reproduce_config(build_parser().parse_args(["reproduce"]))
+    off = reproduce_config(build_parser().parse_args(["reproduce", "--randomise", "none"]))
+    assert default.randomisation.active and not off.randomisation.active
+    assert _randomisation_suffix(default.randomisation) == ""
+    assert _randomisation_suffix(off.randomisation) == "-unrandomised"
+    assert _randomisation_suffix(rd.RandomisationConfig(("dropout",))) == "-randomised-dropout"
+    assert _randomisation_suffix(rd.RandomisationConfig(upper_level=2)) == (
+        "-randomised-pose_noise-latency"
+    )
+    assert transfer._compare_label(off.randomisation, default.randomisation, "b") == "randomised"
+    assert transfer._compare_label(default.randomisation, off.randomisation, "b") == (
+        "unrandomised"
+    )
+    assert transfer._compare_label(default.randomisation, default.randomisation, "b") == "b"
 
 
 def test_the_command_line_and_bad_settings():
