@@ -41,6 +41,7 @@ OWN_PARAMS = (
     "perform_temperature",
     "perform_readout",
     "pose_heading_bins",
+    "pose_tail_dof",
 )
 
 #: How performing reads the motor directive out (``perform_readout``).
@@ -50,7 +51,7 @@ PERFORM_READOUTS = ("posterior", "winner")
 _NOT_NUMBERS = ("perform_readout",)
 
 #: Hyper-parameters for which 0 is a setting (switches a read-out off), not an error.
-_MAY_BE_ZERO = ("perform_temperature",)
+_MAY_BE_ZERO = ("perform_temperature", "pose_tail_dof")
 
 #: The word layer's pose and motor statistics (``count_word_statistics``), counted with the lower
 #: level frozen: further training of the lower level drops them.
@@ -191,6 +192,12 @@ class HierarchicalAssociator:
         each where the teacher turned at that heading, instead of one wide blob that claims
         every pose near it (default 24, the heading code's units; recognition keeps the unit's
         whole component).
+    pose_tail_dof : float
+        The posterior read-out's components: 0 Gaussian; above 0, Student-t with this many
+        degrees of freedom, ``- (dof + 3) / 2 log(1 + d^2 / dof)`` in place of ``- d^2 / 2`` for
+        the squared standardised distance ``d^2`` (default 10; files saved before version 0.8.0
+        load with 0). Heavier tails keep a wide component from taking over the mixture far from
+        every mean (0 or more; recognition is unchanged).
     """
 
     def __init__(
@@ -210,6 +217,7 @@ class HierarchicalAssociator:
         perform_temperature: float = 0.0,
         perform_readout: str = "posterior",
         pose_heading_bins: int = 24,
+        pose_tail_dof: float = 10.0,
     ):
         self.lower = lower
         self.motor_gain = motor_gain
@@ -225,6 +233,7 @@ class HierarchicalAssociator:
         self.perform_temperature = perform_temperature
         self.perform_readout = perform_readout
         self.pose_heading_bins = pose_heading_bins
+        self.pose_tail_dof = pose_tail_dof
 
     def _lower_estimator(self) -> Associator:
         """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
@@ -261,6 +270,7 @@ class HierarchicalAssociator:
             perform_temperature=float(self.perform_temperature),
             perform_readout=str(self.perform_readout),
             pose_heading_bins=int(self.pose_heading_bins),
+            pose_tail_dof=float(self.pose_tail_dof),
         )
         return params
 
@@ -510,7 +520,8 @@ class HierarchicalAssociator:
         """Returns (n, n_components): the log-likelihood of each sample's pose under each
         component of its word (``_pose_components``; per unit, or per unit and heading sector),
         plus the log of its sample count; -inf for components with fewer than
-        ``min_word_samples`` samples."""
+        ``min_word_samples`` samples. The per-sector components are Student-t for
+        ``pose_tail_dof`` above 0, the others always Gaussian."""
         mean, sd_xy, mean_phi, sd_phi, log_norm, samples = self._pose_components(per_unit)
         norm = np.log(np.maximum(samples, 1.0)) + log_norm
         centres = encoding.vision_code_centres(vision)
@@ -522,7 +533,10 @@ class HierarchicalAssociator:
             + ((centres[:, 1, None] - mean[w, :, 1]) / sd_xy[w, :, 1]) ** 2
             + (dphi / sd_phi[w]) ** 2
         )
-        return norm[w] - 0.5 * squared
+        dof = float(self.pose_tail_dof)
+        if per_unit or dof == 0:
+            return norm[w] - 0.5 * squared
+        return norm[w] - 0.5 * (dof + 3.0) * np.log1p(squared / dof)
 
     def _heard_words(self, language: np.ndarray) -> np.ndarray:
         codes = encoding.encode_words(list(self.vocabulary))

@@ -207,6 +207,7 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
         own = json.loads(str(data["hierarchy_params"]))
         own.setdefault("perform_readout", "winner")  # saved before version 0.5.0
         own.setdefault("pose_heading_bins", 1)  # saved before version 0.6.0
+        own.setdefault("pose_tail_dof", 0.0)  # saved before version 0.8.0: Gaussian components
         unfitted_lower = Associator(**lower.get_params())
         model = HierarchicalAssociator(lower=unfitted_lower, **own)
         model.validate_params()

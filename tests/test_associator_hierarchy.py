@@ -407,7 +407,8 @@ def test_posterior_read_out_mixes_every_counted_component_by_its_pose_posterior(
     learned, counted, tmp_path
 ):
     """The default read-out: the motor output is ``sum_k p(k | pose, word) p(d | k, word)`` with
-    ``p(k | pose, word)`` proportional to ``n_k N(pose | word, k)`` (checked by hand), the winner
+    ``p(k | pose, word)`` proportional to ``n_k`` times the component's density at the pose
+    (Student-t by default; checked by hand against the components' log-likelihoods), the winner
     its most probable component; it differs from the winner read-out, which stays an option; an
     unknown read-out is refused by name, and a file saved before it existed loads as 'winner'."""
     _, _, stream, (vision, _, _, _) = learned
@@ -420,7 +421,7 @@ def test_posterior_read_out_mixes_every_counted_component_by_its_pose_posterior(
     )
     for i in range(0, 500, 50):
         word = stream.word[i]
-        pose = model._pose_log_likelihoods(vision[i : i + 1], np.array([word]))[0]
+        pose = model._pose_log_likelihoods(vision[i : i + 1], np.array([word]), per_unit=False)[0]
         weights = np.exp(
             np.where(np.isfinite(pose), pose - np.nanmax(pose[np.isfinite(pose)]), -np.inf)
         )
@@ -560,6 +561,7 @@ def test_lower_estimator_params_round_trip_and_files_keep_their_layout(tmp_path)
         "perform_temperature": 0.0,
         "perform_readout": "posterior",
         "pose_heading_bins": 24,
+        "pose_tail_dof": 10.0,
     }
     assert model.vocabulary == WORDS
     model.fit(*_small_stream())
@@ -726,3 +728,65 @@ def test_heading_sectors_split_the_posterior_components_and_keep_the_units_sums(
             ValueError, match=f"pose_heading_bins must be a whole number in \\[1, 24\\], got {bad}"
         ):
             HierarchicalAssociator(pose_heading_bins=bad).validate_params()
+
+
+def test_student_t_components_reweigh_the_posterior_read_out_only(learned, counted, tmp_path):
+    """With ``pose_tail_dof`` nu > 0 each posterior component's log-likelihood is
+    ``log n_k + log_norm_k - (nu + 3) / 2 log(1 + d^2 / nu)`` (checked by hand against the
+    Gaussian's ``- d^2 / 2``): the motor output changes, recognition does not; it tends to the
+    Gaussian as nu grows, far from a component its weight falls as a power of the distance, it is
+    saved, a file saved before it loads Gaussian, and a negative nu is refused."""
+    _, _, stream, (vision, _, motor, _) = learned
+    gaussian = copy.deepcopy(counted[0])
+    gaussian.pose_tail_dof = 0.0
+    heavy = copy.deepcopy(gaussian)
+    heavy.pose_tail_dof = 3.0
+    words = np.array(stream.word[:300])
+    g = gaussian._pose_log_likelihoods(vision[:300], words, per_unit=False)
+    t = heavy._pose_log_likelihoods(vision[:300], words, per_unit=False)
+    finite = np.isfinite(g)
+    np.testing.assert_array_equal(finite, np.isfinite(t))
+    # Both are log n_k + log_norm_k at the component's mean; the Gaussian's rest gives d^2.
+    *_, log_norm, samples = gaussian._pose_components(per_unit=False)
+    norm = (np.log(np.maximum(samples, 1.0)) + log_norm)[words]
+    squared = -2.0 * (g[finite] - norm[finite])
+    np.testing.assert_allclose(
+        t[finite], norm[finite] - 0.5 * 6.0 * np.log1p(squared / 3.0), rtol=1e-9, atol=1e-9
+    )
+    # Per-unit components (recognition's pose evidence, the winner read-out) stay Gaussian.
+    np.testing.assert_array_equal(
+        gaussian._pose_log_likelihoods(vision[:300], words),
+        heavy._pose_log_likelihoods(vision[:300], words),
+    )
+    a = heavy.recognise_sequence(vision[:300], motor[:300])
+    b = gaussian.recognise_sequence(vision[:300], motor[:300])
+    np.testing.assert_array_equal(a.words, b.words)
+    names = [WORDS[i] for i in words]
+    out_t = heavy.perform_batch(vision[:300], names)
+    out_g = gaussian.perform_batch(vision[:300], names)
+    assert np.abs(out_t.motor - out_g.motor).max() > 0.01
+    np.testing.assert_allclose(out_t.motor.sum(axis=1), 1.0, rtol=1e-9)
+    # Many degrees of freedom: the Gaussian again.
+    near = copy.deepcopy(gaussian)
+    near.pose_tail_dof = 1e7
+    np.testing.assert_allclose(
+        near.perform_batch(vision[:300], names).motor, out_g.motor, rtol=1e-4, atol=1e-5
+    )
+    # Far from every component: the log-likelihood falls as -(nu + 3) log d, not -d^2 / 2.
+    far = squared.max() * np.array([1e2, 1e4])
+    drop_t = -0.5 * 6.0 * np.diff(np.log1p(far / 3.0))[0]
+    assert -0.5 * np.diff(far)[0] < drop_t < 0 and abs(drop_t + 3.0 * np.log(100.0)) < 0.1
+    # Saved with the model; files saved without it load Gaussian.
+    path = persistence.save(heavy, tmp_path / "t.npz")
+    loaded = persistence.load(path)
+    assert loaded.pose_tail_dof == 3.0
+    np.testing.assert_array_equal(loaded.perform_batch(vision[:300], names).motor, out_t.motor)
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    own = json.loads(str(arrays["hierarchy_params"]))
+    own.pop("pose_tail_dof")
+    np.savez(tmp_path / "old.npz", **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
+    assert persistence.load(tmp_path / "old.npz").pose_tail_dof == 0.0
+    for bad in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="pose_tail_dof must be a finite number >= 0"):
+            HierarchicalAssociator(pose_tail_dof=bad).validate_params()
