@@ -44,6 +44,16 @@ OWN_PARAMS = (
     "pose_tail_dof",
 )
 
+#: Hyper-parameters that act only when performing (``perform_batch``): they change no training,
+#: count or recognition, so networks learnt with other values of them can perform with these.
+PERFORM_ONLY_PARAMS = (
+    "word_bias",
+    "pose_weight",
+    "perform_temperature",
+    "perform_readout",
+    "pose_tail_dof",
+)
+
 #: How performing reads the motor directive out (``perform_readout``).
 PERFORM_READOUTS = ("posterior", "winner")
 

@@ -519,8 +519,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--reuse-from",
         type=pathlib.Path,
         default=None,
-        help="take the streams and trained network of this finished run folder (same seed, motor "
-        "source, steps and network): compare vision modes on one network",
+        help="take the streams and trained networks of this finished run folder (same seed, motor "
+        "source, steps and networks; the hierarchical student's performing-only settings may "
+        "differ): compare vision modes or read-outs on one network",
     )
     rep.set_defaults(func=_cmd_reproduce)
 

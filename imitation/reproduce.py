@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from associator import encoding, persistence
-from associator.hierarchy import HierarchicalAssociator
+from associator.hierarchy import PERFORM_ONLY_PARAMS, HierarchicalAssociator
 from associator.network import Associator
 from imitation import config as run_config
 from imitation import learning, page, randomisation, recognition, report, storage, trials, videos
@@ -233,11 +233,39 @@ SHARED_LEARNING_SECTIONS = (
 )
 
 
+def _learning_part(config: dict, section: str):
+    """Returns ``config[section]`` as far as it decides the streams and networks: the hierarchical
+    section without its performing-only settings (``PERFORM_ONLY_PARAMS``)."""
+    value = config.get(section)
+    if section == "hierarchical" and isinstance(value, dict):
+        return {k: v for k, v in value.items() if k not in PERFORM_ONLY_PARAMS}
+    return value
+
+
+def _perform_settings(config: dict) -> dict:
+    """Returns the hierarchical section's performing-only settings of a run's configuration."""
+    section = config.get("hierarchical") or {}
+    return {k: section[k] for k in PERFORM_ONLY_PARAMS if k in section}
+
+
+def _set_perform_settings(path: pathlib.Path, settings: dict) -> dict:
+    """Rewrites the hierarchical network saved at ``path`` (its metadata kept) to perform with
+    ``settings``; returns its hyper-parameters as the learning stage records them."""
+    model = persistence.load(path)
+    for name, value in settings.items():
+        setattr(model, name, value)
+    model.validate_params()
+    learning.save_atomically(model, path, persistence.load_metadata(path))
+    return _listed(model.get_params())
+
+
 def reuse_learning(state: RunState, source) -> None:
     """Copies the streams and the trained networks of the finished run in ``source`` into this
     run, if both were made by this version, agree on ``SHARED_LEARNING_SECTIONS`` (so vision modes
     can be compared on one network) and the source's files are intact; raises ValueError
-    otherwise."""
+    otherwise. The hierarchical network may differ in its performing-only settings
+    (``PERFORM_ONLY_PARAMS``: read-outs compared on one network): its copy performs with this
+    run's."""
     source = pathlib.Path(source)
     try:
         other = json.loads((source / "state.json").read_text())
@@ -251,7 +279,9 @@ def reuse_learning(state: RunState, source) -> None:
             f"is {state.version}; it cannot be reused"
         )
     mine, theirs = state.data["config"], other["config"]
-    differing = [k for k in SHARED_LEARNING_SECTIONS if theirs.get(k) != mine.get(k)]
+    differing = [
+        k for k in SHARED_LEARNING_SECTIONS if _learning_part(theirs, k) != _learning_part(mine, k)
+    ]
     if differing:
         raise ValueError(
             f"--reuse-from {source} was run with other {', '.join(differing)}; it cannot be reused"
@@ -275,8 +305,15 @@ def reuse_learning(state: RunState, source) -> None:
             tmp = storage.temporary_name(target)
             shutil.copyfile(path, tmp)
             copied[stage].append(storage.commit(tmp, target))
+    results = {stage: {**other["stages"][stage], "reused_from": str(source)} for stage in copied}
+    settings = _perform_settings(mine)
+    hierarchical = results["learning"].get("hierarchical")
+    if hierarchical is not None and settings != _perform_settings(theirs):
+        path = state.folder / hierarchical["network"]
+        hierarchical = {**hierarchical, "params": _set_perform_settings(path, settings)}
+        results["learning"]["hierarchical"] = hierarchical
     for stage in ("streams", "learning"):
-        state.finish(stage, {**other["stages"][stage], "reused_from": str(source)}, copied[stage])
+        state.finish(stage, results[stage], copied[stage])
 
 
 def run(

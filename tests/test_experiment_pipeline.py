@@ -529,6 +529,49 @@ def test_reuse_from_takes_the_networks_for_a_camera_run(run_folder, tmp_path):
         reproduce.run(config.replace({"seed": 3}), tmp_path / "third", reuse_from=folder)
 
 
+def test_reuse_from_performs_on_the_same_network_with_other_read_out_settings(run_folder, tmp_path):
+    """A run that differs from the source only in the hierarchical student's performing-only
+    settings (``PERFORM_ONLY_PARAMS``) reuses its networks: the copy performs with the run's
+    settings (saved in it and in results.json), its learnt arrays and recognition are the
+    source's; a setting that changes learning is still refused by name."""
+    folder, reference = run_folder
+    assert reference["learning"]["hierarchical"]["params"]["pose_tail_dof"] == 10.0
+    config = tiny_config(
+        **{
+            "hierarchical.pose_tail_dof": 0.0,
+            "hierarchical.word_bias": 0.1,
+            "videos.enabled": False,
+        }
+    )
+    results = reproduce.run(config, tmp_path / "gaussian", reuse_from=folder).to_json()
+    assert results["learning"]["reused_from"] == str(folder)
+    params = results["learning"]["hierarchical"]["params"]
+    assert params == {
+        **reference["learning"]["hierarchical"]["params"],
+        "pose_tail_dof": 0.0,
+        "word_bias": 0.1,
+    }
+    copied = persistence.load(tmp_path / "gaussian" / "hierarchical.npz")
+    assert (copied.pose_tail_dof, copied.word_bias) == (0.0, 0.1)
+    assert persistence.load(folder / "hierarchical.npz").pose_tail_dof == 10.0
+    with (
+        np.load(folder / "hierarchical.npz") as source,
+        np.load(tmp_path / "gaussian" / "hierarchical.npz") as copy_,
+    ):
+        assert set(source.files) == set(copy_.files)
+        for name in source.files:
+            if name != "hierarchy_params":
+                np.testing.assert_array_equal(source[name], copy_[name], err_msg=name)
+    assert results["recognition"]["confusion"] == reference["recognition"]["confusion"]
+    # Resumed, the run keeps its copy as it is (its recorded digest).
+    again = reproduce.run(config, tmp_path / "gaussian", reuse_from=folder).to_json()
+    assert again["learning"] == results["learning"]
+    with pytest.raises(ValueError, match=r"other hierarchical"):
+        reproduce.run(
+            tiny_config(**{"hierarchical.motor_gain": 2.0}), tmp_path / "gain", reuse_from=folder
+        )
+
+
 def test_the_run_page_loads_in_a_real_browser(run_folder, tmp_path):
     """``index.html`` in headless Chromium: every figure and video of the run loads, the results
     tables are there; a screenshot is saved (skipped where no Chromium is installed)."""
