@@ -439,13 +439,9 @@ def test_posterior_read_out_mixes_every_counted_component_by_its_pose_posterior(
         model.validate_params()
     model.perform_readout = "posterior"
     path = persistence.save(model, tmp_path / "h.npz")
-    with np.load(path) as archive:
-        arrays = {name: archive[name] for name in archive.files}
-    own = json.loads(str(arrays["hierarchy_params"]))
-    assert own.pop("perform_readout") == "posterior"
-    arrays["hierarchy_params"] = np.array(json.dumps(own))
-    np.savez(tmp_path / "old.npz", **arrays)
-    assert persistence.load(tmp_path / "old.npz").perform_readout == "winner"
+    assert persistence.load(path).perform_readout == "posterior"  # saved with the network
+    old = _with_saved_params(path, tmp_path / "old.npz", lambda own: own.pop("perform_readout"))
+    assert persistence.load(old).perform_readout == "winner"
 
 
 def test_word_statistics_are_dropped_by_learning_and_kept_by_saving(counted, tmp_path):
@@ -499,6 +495,18 @@ def test_bad_input_raises(learned):
         model.recognise_sequence(
             vision[:3], motor[:3], state=SequenceState(np.full(3, 1 / 3), 10_000)
         )
+
+
+def _with_saved_params(path, out, change):
+    """Returns ``out``, a copy of the hierarchical network file ``path`` whose saved
+    hyper-parameters ``change`` (called on their dict) edited: a file of an older version, or a
+    damaged one."""
+    with np.load(path) as archive:
+        arrays = {name: archive[name] for name in archive.files}
+    own = json.loads(str(arrays["hierarchy_params"]))
+    change(own)
+    np.savez(out, **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
+    return out
 
 
 def _small_stream(n: int = 600):
@@ -700,19 +708,17 @@ def test_heading_sectors_split_the_posterior_components_and_keep_the_units_sums(
     loaded = persistence.load(path)
     assert loaded.pose_heading_bins == 4
     np.testing.assert_array_equal(loaded.perform_batch(vision[:300], words).motor, out.motor)
-    with np.load(path) as archive:
-        arrays = {name: archive[name] for name in archive.files}
-    own = json.loads(str(arrays["hierarchy_params"]))
-    own["pose_heading_bins"] = 2
-    np.savez(tmp_path / "wrong.npz", **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
+    wrong = _with_saved_params(
+        path, tmp_path / "wrong.npz", lambda own: own.update(pose_heading_bins=2)
+    )
     with pytest.raises(ValueError, match=r"word_samples has shape \(3, 768\), expected \(3, 384\)"):
-        persistence.load(tmp_path / "wrong.npz")
-    with np.load(persistence.save(whole, tmp_path / "w.npz")) as archive:
-        arrays = {name: archive[name] for name in archive.files}
-    own = json.loads(str(arrays["hierarchy_params"]))
-    own.pop("pose_heading_bins")
-    np.savez(tmp_path / "old.npz", **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
-    assert persistence.load(tmp_path / "old.npz").pose_heading_bins == 1
+        persistence.load(wrong)
+    old = _with_saved_params(
+        persistence.save(whole, tmp_path / "w.npz"),
+        tmp_path / "old.npz",
+        lambda own: own.pop("pose_heading_bins"),
+    )
+    assert persistence.load(old).pose_heading_bins == 1
     # A word none of whose components was counted often enough performs from the lower W_td, as
     # before counting (a short training stream split into 24 sectors leaves words so).
     sparse = recounted(24)
@@ -781,12 +787,8 @@ def test_student_t_components_reweigh_the_posterior_read_out_only(learned, count
     loaded = persistence.load(path)
     assert loaded.pose_tail_dof == 3.0
     np.testing.assert_array_equal(loaded.perform_batch(vision[:300], names).motor, out_t.motor)
-    with np.load(path) as archive:
-        arrays = {name: archive[name] for name in archive.files}
-    own = json.loads(str(arrays["hierarchy_params"]))
-    own.pop("pose_tail_dof")
-    np.savez(tmp_path / "old.npz", **{**arrays, "hierarchy_params": np.array(json.dumps(own))})
-    assert persistence.load(tmp_path / "old.npz").pose_tail_dof == 0.0
+    old = _with_saved_params(path, tmp_path / "old.npz", lambda own: own.pop("pose_tail_dof"))
+    assert persistence.load(old).pose_tail_dof == 0.0
     for bad in (-1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="pose_tail_dof must be a finite number >= 0"):
             HierarchicalAssociator(pose_tail_dof=bad).validate_params()
