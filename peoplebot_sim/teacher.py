@@ -86,6 +86,11 @@ class TeacherConfig:
         offset drawn uniformly within +- this, until its depth in front of the dock is below a
         depth drawn uniformly within (0, ``funnel_lookahead_m``); then it steers at the dock,
         so the demonstrations show how to correct a sideways miss near the table (0: never).
+      funnel_overshoot_s: each 'funnel' docking, on arriving at the dock, rolls on forward for a
+        time drawn uniformly within (0, this) seconds (a disturbance: its wheels drive on while
+        it commands what its controller says at the true pose), and, while it squares up and
+        settles, a robot more than 1.5 cm past the dock's depth backs out square to the table, so
+        the demonstrations show how to come back from beyond the dock (0: never, and no check).
       robot_linear_accel_mps2, robot_yaw_accel_degps2: the robot's firmware limits on the change
         of its speed set-points (0: none, the speeds change at once, as in the simulated robot by
         default). Given, the funnel docking and the squaring stop commanding motion once the
@@ -128,6 +133,7 @@ class TeacherConfig:
     funnel_lookahead_m: float = 0.3
     funnel_tolerance_m: float = 0.05
     funnel_miss_m: float = 0.25
+    funnel_overshoot_s: float = 0.0
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
     robot_linear_accel_mps2: float = 0.0
@@ -200,7 +206,10 @@ class TeacherConfig:
         """Returns these settings without disturbances or drawn misses: the controller alone, as
         the reference row performs."""
         return dataclasses.replace(
-            self, slip_rate_per_s={"go": 0.0, "pick": 0.0, "lift": 0.0}, funnel_miss_m=0.0
+            self,
+            slip_rate_per_s={"go": 0.0, "pick": 0.0, "lift": 0.0},
+            funnel_miss_m=0.0,
+            funnel_overshoot_s=0.0,
         )
 
 
@@ -256,7 +265,7 @@ class Teacher:
         self.executed = "forward"
         self._slip_steps = 0
         self._slip_directive = "forward"
-        self._miss_m = self._miss_depth_m = 0.0
+        self._miss_m = self._miss_depth_m = self._roll_on_s = 0.0
         self._last_pose = None
         self._speed_mps = self._yaw_rate_degps = 0.0
         self.time_s = 0.0
@@ -289,6 +298,7 @@ class Teacher:
         "_pick_on_entry",
         "_miss_m",
         "_miss_depth_m",
+        "_roll_on_s",
         "_last_pose",
         "_speed_mps",
         "_yaw_rate_degps",
@@ -306,6 +316,7 @@ class Teacher:
 
     def set_state(self, state: dict) -> None:
         """Restores a state from ``get_state``; the controller then continues identically."""
+        state = {"_roll_on_s": 0.0, **state}  # states saved before the overshoot existed
         missing = set(self._STATE_FIELDS) - set(state)
         if missing:
             raise ValueError(f"teacher state lacks {sorted(missing)}")
@@ -345,6 +356,9 @@ class Teacher:
             if c.docking == "funnel" and c.funnel_miss_m > 0:
                 self._miss_m = float(self._rng.uniform(-c.funnel_miss_m, c.funnel_miss_m))
                 self._miss_depth_m = float(self._rng.uniform(0.0, c.funnel_lookahead_m))
+            self._roll_on_s = 0.0
+            if c.docking == "funnel" and c.funnel_overshoot_s > 0:
+                self._roll_on_s = float(self._rng.uniform(0.0, c.funnel_overshoot_s))
         self.word = word
         self.phase = phase
         self._behaviour_start_s = getattr(self, "time_s", 0.0)
@@ -423,6 +437,14 @@ class Teacher:
         """Returns what the wheels do for the commanded ``directive``: a disturbance's while one
         lasts, else the directive."""
         c = self.config
+        if self._roll_on_s > 0 and self.word == "pick" and self.phase == "square":
+            # the drawn overshoot: arrived at the dock, the wheels roll on
+            self._slip_directive = "forward"
+            self._slip_steps = max(1, int(round(self._roll_on_s / dt)))
+            self._roll_on_s = 0.0
+        if self._slip_steps > 0 and self._slip_directive == "forward" and self.word == "pick":
+            self._slip_steps -= 1
+            return "forward"
         rate = c.slip_rate_per_s[self.word]
         if rate <= 0 or self.phase in ("settle", "done", "backoff"):
             self._slip_steps = 0
@@ -509,6 +531,13 @@ class Teacher:
             if directive is not None:
                 return directive
             self.phase = "square"
+        elif (
+            c.docking == "funnel"
+            and c.funnel_overshoot_s > 0
+            and self.phase in ("square", "settle")
+            and y > dock_y + 0.015
+        ):  # rolled on past the dock: back out, square to the table
+            return self._funnel_docking(x, y, yaw)
         if self.phase == "line_up":
             if abs(x - dock_x) <= c.lateral_tol_m and y <= dock_y:
                 self.phase = "face"
@@ -609,7 +638,8 @@ class Teacher:
         c = self.config
         dock_x, dock_y, _ = self.dock_pose
         lateral, depth = x - dock_x, dock_y - y
-        if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m:
+        past = c.funnel_overshoot_s > 0 and depth < -0.015  # checked only with the overshoot
+        if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m and not past:
             return None
         reach = self._stopping_distance_m()
         if reach > 0:  # braking now, the robot rolls on this far: done if it rests at the dock

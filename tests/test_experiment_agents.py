@@ -339,6 +339,45 @@ def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
     assert quiet._miss_m == 0.0
 
 
+def test_funnel_overshoot_rolls_on_past_the_dock_and_the_teacher_backs_out():
+    """With ``funnel_overshoot_s`` each 'pick' draws how long its wheels roll on at the dock;
+    arrived, they drive forward that long while the teacher commands its controller's directive;
+    past the dock it backs out square to the table, also while squaring or settling. Without it
+    (the default, and the reference's ``undisturbed``) nothing is drawn and a robot past the dock
+    counts as arrived, as before the option existed."""
+    config = TeacherConfig(docking="funnel", funnel_overshoot_s=0.6)
+    teacher = Teacher(config, rng=5)
+    dock_x, dock_y, _ = teacher.dock_pose
+    rolls = []
+    for _ in range(200):
+        teacher.begin("pick")
+        rolls.append(teacher._roll_on_s)
+    rolls = np.array(rolls)
+    assert np.all((rolls >= 0) & (rolls <= 0.6)) and rolls.min() < 0.05 and rolls.max() > 0.55
+    # Arrived: the wheels roll on for the drawn time (0.5 s: 5 steps of 0.1 s), then obey.
+    teacher.begin("pick")
+    teacher._roll_on_s = 0.5
+    teacher.phase = "square"
+    executed = [teacher._disturbed("turn_left", 0.1) for _ in range(7)]
+    assert executed == ["forward"] * 5 + ["turn_left"] * 2
+    # Past the dock, square or settling: it backs out (turning square first when askew).
+    for phase in ("square", "settle"):
+        teacher.phase = phase
+        assert teacher._pick(dock_x + 0.02, dock_y + 0.1, np.pi / 2, None) == "backward"
+        assert teacher.phase == "back_up"
+    teacher.phase = "settle"
+    assert teacher._pick(dock_x, dock_y + 0.1, np.pi / 2 + 0.5, None) == "turn_right"
+    assert teacher._funnel_docking(dock_x + 0.02, dock_y + 0.01, np.pi / 2) is None
+    # The default draws nothing and keeps the old arrival rule.
+    plain = Teacher(TeacherConfig(docking="funnel"), rng=5)
+    plain.begin("pick")
+    assert plain._roll_on_s == 0.0
+    assert plain._funnel_docking(dock_x + 0.02, dock_y + 0.1, np.pi / 2) is None
+    assert config.undisturbed().funnel_overshoot_s == 0.0
+    with pytest.raises(ValueError, match="teacher.funnel_overshoot_s must be a finite number"):
+        TeacherConfig(funnel_overshoot_s=-0.1)
+
+
 @pytest.mark.parametrize("settle", ["align", "pattern"])
 def test_settling_turns_towards_square_or_follows_the_pattern(settle):
     """Docked askew, the 'align' settle turns back towards square at every step (alternating about

@@ -404,6 +404,41 @@ def test_pick_triggers_on_a_drawn_share_of_entries_and_go_goes_on_otherwise():
         TeacherConfig(funnel_lookahead_m=0.0)
 
 
+def test_overshoot_shows_the_way_back_from_beyond_the_dock():
+    """With ``teacher.funnel_overshoot_s`` the recorded stream holds 'pick' poses beyond the
+    dock, where the commands are the controller's way back (square up, back out) while the wheels
+    rolled on; every docking still settles and the watchdog never fires. Without it the teacher
+    rarely stands there."""
+
+    def record(overshoot_s):
+        config = task.TaskConfig()
+        config = dataclasses.replace(
+            config, teacher=dataclasses.replace(config.teacher, funnel_overshoot_s=overshoot_s)
+        )
+        generator = StreamGenerator(7, config)
+        teacher = generator.task.teacher_controller
+        dock_y = teacher.dock_pose[1]
+        beyond, rolled, picks, settles, word, phase = [], 0, 0, 0, None, None
+        for _ in range(8000):
+            stream = generator.generate(1)
+            commanded = directives.DIRECTIVES[stream.directive[0]]
+            picks += teacher.word == "pick" and word != "pick"
+            settles += teacher.phase == "settle" and phase != "settle"
+            word, phase = teacher.word, teacher.phase
+            if word == "pick" and stream.pose_world[0][1] > dock_y + 0.03:
+                beyond.append(commanded)
+            rolled += teacher.executed == "forward" and commanded != "forward"
+        assert teacher.events == []
+        return beyond, rolled, picks, settles
+
+    beyond, rolled, picks, settles = record(0.6)
+    assert picks >= 10 and settles >= picks - 1
+    assert len(beyond) >= 40 and "backward" in beyond and "forward" not in beyond
+    assert rolled > 0
+    plain, rolled, _, _ = record(0.0)
+    assert len(plain) < len(beyond) / 3 and rolled == 0
+
+
 def test_disturbances_turn_the_wheels_while_the_commands_stay_the_controllers():
     """With disturbances, the wheels sometimes turn while the teacher commands something else (only
     in 'pick', never while it settles), at about the configured rate; the stream records the
