@@ -88,9 +88,10 @@ class TeacherConfig:
         so the demonstrations show how to correct a sideways miss near the table (0: never).
       funnel_overshoot_s: each 'funnel' docking, on arriving at the dock, rolls on forward for a
         time drawn uniformly within (0, this) seconds (a disturbance: its wheels drive on while
-        it commands what its controller says at the true pose), and, while it squares up and
-        settles, a robot more than 1.5 cm past the dock's depth backs out square to the table, so
-        the demonstrations show how to come back from beyond the dock (0: never, and no check).
+        it commands what its controller says at the true pose), and a robot more than
+        ``funnel_tolerance_m`` past the dock's depth, also while it squares up and settles, backs
+        out square to the table, so the demonstrations show how to come back from beyond the
+        dock (0: never, and no check).
       robot_linear_accel_mps2, robot_yaw_accel_degps2: the robot's firmware limits on the change
         of its speed set-points (0: none, the speeds change at once, as in the simulated robot by
         default). Given, the funnel docking and the squaring stop commanding motion once the
@@ -535,7 +536,7 @@ class Teacher:
             c.docking == "funnel"
             and c.funnel_overshoot_s > 0
             and self.phase in ("square", "settle")
-            and y > dock_y + 0.015
+            and y > dock_y + c.funnel_tolerance_m
         ):  # rolled on past the dock: back out, square to the table
             return self._funnel_docking(x, y, yaw)
         if self.phase == "line_up":
@@ -638,7 +639,7 @@ class Teacher:
         c = self.config
         dock_x, dock_y, _ = self.dock_pose
         lateral, depth = x - dock_x, dock_y - y
-        past = c.funnel_overshoot_s > 0 and depth < -0.015  # checked only with the overshoot
+        past = c.funnel_overshoot_s > 0 and depth < -c.funnel_tolerance_m  # only with the overshoot
         if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m and not past:
             return None
         reach = self._stopping_distance_m()

@@ -342,9 +342,9 @@ def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
 def test_funnel_overshoot_rolls_on_past_the_dock_and_the_teacher_backs_out():
     """With ``funnel_overshoot_s`` each 'pick' draws how long its wheels roll on at the dock;
     arrived, they drive forward that long while the teacher commands its controller's directive;
-    past the dock it backs out square to the table, also while squaring or settling. Without it
-    (the default, and the reference's ``undisturbed``) nothing is drawn and a robot past the dock
-    counts as arrived, as before the option existed."""
+    more than ``funnel_tolerance_m`` past the dock it backs out square to the table, also while
+    squaring or settling. Without it (the default, and the reference's ``undisturbed``) nothing
+    is drawn and a robot past the dock counts as arrived, as before the option existed."""
     config = TeacherConfig(docking="funnel", funnel_overshoot_s=0.6)
     teacher = Teacher(config, rng=5)
     dock_x, dock_y, _ = teacher.dock_pose
@@ -367,7 +367,9 @@ def test_funnel_overshoot_rolls_on_past_the_dock_and_the_teacher_backs_out():
         assert teacher.phase == "back_up"
     teacher.phase = "settle"
     assert teacher._pick(dock_x, dock_y + 0.1, np.pi / 2 + 0.5, None) == "turn_right"
-    assert teacher._funnel_docking(dock_x + 0.02, dock_y + 0.01, np.pi / 2) is None
+    # Within the tolerance past the dock it has arrived; beyond it, it backs out.
+    assert teacher._funnel_docking(dock_x + 0.02, dock_y + 0.04, np.pi / 2) is None
+    assert teacher._funnel_docking(dock_x + 0.02, dock_y + 0.06, np.pi / 2) == "backward"
     # The default draws nothing and keeps the old arrival rule.
     plain = Teacher(TeacherConfig(docking="funnel"), rng=5)
     plain.begin("pick")
