@@ -267,6 +267,7 @@ class Teacher:
         self._slip_steps = 0
         self._slip_directive = "forward"
         self._miss_m = self._miss_depth_m = self._roll_on_s = 0.0
+        self._roll_on_steps = 0
         self._last_pose = None
         self._speed_mps = self._yaw_rate_degps = 0.0
         self.time_s = 0.0
@@ -300,6 +301,7 @@ class Teacher:
         "_miss_m",
         "_miss_depth_m",
         "_roll_on_s",
+        "_roll_on_steps",
         "_last_pose",
         "_speed_mps",
         "_yaw_rate_degps",
@@ -317,7 +319,7 @@ class Teacher:
 
     def set_state(self, state: dict) -> None:
         """Restores a state from ``get_state``; the controller then continues identically."""
-        state = {"_roll_on_s": 0.0, **state}  # states saved before the overshoot existed
+        state = {"_roll_on_s": 0.0, "_roll_on_steps": 0, **state}  # saved before the overshoot
         missing = set(self._STATE_FIELDS) - set(state)
         if missing:
             raise ValueError(f"teacher state lacks {sorted(missing)}")
@@ -360,6 +362,7 @@ class Teacher:
             self._roll_on_s = 0.0
             if c.docking == "funnel" and c.funnel_overshoot_s > 0:
                 self._roll_on_s = float(self._rng.uniform(0.0, c.funnel_overshoot_s))
+        self._roll_on_steps = 0
         self.word = word
         self.phase = phase
         self._behaviour_start_s = getattr(self, "time_s", 0.0)
@@ -438,13 +441,12 @@ class Teacher:
         """Returns what the wheels do for the commanded ``directive``: a disturbance's while one
         lasts, else the directive."""
         c = self.config
-        if self._roll_on_s > 0 and self.word == "pick" and self.phase == "square":
+        if self._roll_on_s > 0 and self.phase == "square":
             # the drawn overshoot: arrived at the dock, the wheels roll on
-            self._slip_directive = "forward"
-            self._slip_steps = max(1, int(round(self._roll_on_s / dt)))
+            self._roll_on_steps = max(1, int(round(self._roll_on_s / dt)))
             self._roll_on_s = 0.0
-        if self._slip_steps > 0 and self._slip_directive == "forward" and self.word == "pick":
-            self._slip_steps -= 1
+        if self._roll_on_steps > 0:
+            self._roll_on_steps -= 1
             return "forward"
         rate = c.slip_rate_per_s[self.word]
         if rate <= 0 or self.phase in ("settle", "done", "backoff"):
@@ -533,11 +535,8 @@ class Teacher:
                 return directive
             self.phase = "square"
         elif (
-            c.docking == "funnel"
-            and c.funnel_overshoot_s > 0
-            and self.phase in ("square", "settle")
-            and y > dock_y + c.funnel_tolerance_m
-        ):  # rolled on past the dock: back out, square to the table
+            c.docking == "funnel" and self.phase in ("square", "settle") and self._rolled_past(y)
+        ):  # back out, square to the table
             return self._funnel_docking(x, y, yaw)
         if self.phase == "line_up":
             if abs(x - dock_x) <= c.lateral_tol_m and y <= dock_y:
@@ -626,6 +625,12 @@ class Teacher:
             return self._turn_towards(error)
         return "backward"
 
+    def _rolled_past(self, y) -> bool:
+        """Returns whether a robot at world ``y`` (m) stands beyond the dock by more than
+        ``funnel_tolerance_m``: checked only with ``funnel_overshoot_s``, which rolls it there."""
+        c = self.config
+        return c.funnel_overshoot_s > 0 and y > self.dock_pose[1] + c.funnel_tolerance_m
+
     def _funnel_docking(self, x, y, yaw) -> str | None:
         """Returns the 'funnel' docking's directive at a pose, or None once it stands at the dock
         (at its depth, its lateral offset within ``funnel_tolerance_m``; then it squares up and
@@ -639,8 +644,7 @@ class Teacher:
         c = self.config
         dock_x, dock_y, _ = self.dock_pose
         lateral, depth = x - dock_x, dock_y - y
-        past = c.funnel_overshoot_s > 0 and depth < -c.funnel_tolerance_m  # only with the overshoot
-        if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m and not past:
+        if depth <= 0.015 and abs(lateral) <= c.funnel_tolerance_m and not self._rolled_past(y):
             return None
         reach = self._stopping_distance_m()
         if reach > 0:  # braking now, the robot rolls on this far: done if it rests at the dock

@@ -313,6 +313,16 @@ def test_funnel_docking_backs_out_square_from_nearer_the_table_than_the_dock():
     assert teacher._funnel_docking(dock_x - 0.2, dock_y, 0.0) == "forward"
 
 
+def _drawn_per_pick(teacher: Teacher, *names: str, picks: int = 200) -> np.ndarray:
+    """Begins 'pick' ``picks`` times; returns each named drawn value per pick, shape
+    (len(names), picks)."""
+    draws = []
+    for _ in range(picks):
+        teacher.begin("pick")
+        draws.append([getattr(teacher, name) for name in names])
+    return np.array(draws).T
+
+
 def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
     """Each 'pick' draws a miss: beyond its drawn depth the teacher pursues the line beside the
     centre line, nearer the table the dock; the reference's controller (``undisturbed``) never
@@ -320,11 +330,7 @@ def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
     config = TeacherConfig(docking="funnel", funnel_miss_m=0.25)
     teacher = Teacher(config, rng=3)
     dock_x, dock_y, _ = teacher.dock_pose
-    misses = []
-    for _ in range(200):
-        teacher.begin("pick")
-        misses.append((teacher._miss_m, teacher._miss_depth_m))
-    miss, depth = np.array(misses).T
+    miss, depth = _drawn_per_pick(teacher, "_miss_m", "_miss_depth_m")
     assert np.all(np.abs(miss) <= 0.25) and miss.min() < -0.2 and miss.max() > 0.2
     assert np.all((depth >= 0) & (depth <= config.funnel_lookahead_m))
     teacher._miss_m, teacher._miss_depth_m = 0.2, 0.1
@@ -348,11 +354,7 @@ def test_funnel_overshoot_rolls_on_past_the_dock_and_the_teacher_backs_out():
     config = TeacherConfig(docking="funnel", funnel_overshoot_s=0.6)
     teacher = Teacher(config, rng=5)
     dock_x, dock_y, _ = teacher.dock_pose
-    rolls = []
-    for _ in range(200):
-        teacher.begin("pick")
-        rolls.append(teacher._roll_on_s)
-    rolls = np.array(rolls)
+    (rolls,) = _drawn_per_pick(teacher, "_roll_on_s")
     assert np.all((rolls >= 0) & (rolls <= 0.6)) and rolls.min() < 0.05 and rolls.max() > 0.55
     # Arrived: the wheels roll on for the drawn time (0.5 s: 5 steps of 0.1 s), then obey.
     teacher.begin("pick")
