@@ -190,7 +190,7 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_transfer(args) -> int:
-    from imitation import perturbations, transfer
+    from imitation import perturbations, transfer, transfer_runs
 
     scale = transfer.SCALES["quick" if args.quick else "default"]
     changes = {
@@ -200,34 +200,49 @@ def _cmd_transfer(args) -> int:
     }
     if args.trial_seconds is not None:
         changes["performance.trial_seconds"] = args.trial_seconds
-    vision = args.vision or transfer.source_run(args.reuse_from).vision.mode
-    source = pathlib.Path(args.reuse_from).resolve()
+    sources = transfer_runs.expand_sources(args.reuse_from)
+    if not sources:
+        raise ValueError(f"--reuse-from {args.reuse_from[0]} is a sweep folder without run cells")
+    several = len(sources) > 1
+    if several and args.compare is not None:
+        raise ValueError(
+            f"--compare takes one --reuse-from run, got {len(sources)} runs; compare them one "
+            "seed at a time"
+        )
+    vision = args.vision or transfer.source_run(sources[0]).vision.mode
+    if len(args.reuse_from) == 1:  # a run, or a sweep folder
+        name = args.reuse_from[0].resolve().name
+    else:
+        name = f"{sources[0].name}-to-{sources[-1].name}"
     out = args.out or RENDERS / "transfer" / (
-        f"{source.name}-{vision}" + (f"-{args.preset}" if args.preset else "")
+        f"{name}-{vision}" + (f"-{args.preset}" if args.preset else "")
     )
     families = args.families
     if families is None and scale.families is not None:
         families = ",".join(scale.families)
+    options = dict(
+        families=transfer.parse_families(families, vision),
+        levels=transfer.parse_levels(args.levels),
+        vision=args.vision,
+        base_perturbations=perturbations.preset(args.preset) if args.preset else None,
+        changes=changes,
+        fresh=args.fresh,
+        address=args.address,
+        workers=args.workers,
+    )
     try:
-        transfer.transfer(
-            args.reuse_from,
-            out,
-            families=transfer.parse_families(families, vision),
-            levels=transfer.parse_levels(args.levels),
-            vision=args.vision,
-            base_perturbations=perturbations.preset(args.preset) if args.preset else None,
-            changes=changes,
-            fresh=args.fresh,
-            address=args.address,
-            workers=args.workers,
-            compare=args.compare,
-            compare_label=args.compare_label,
-        )
+        if several:
+            transfer_runs.transfer_runs(sources, out, **options)
+        else:
+            transfer.transfer(
+                sources[0], out, compare=args.compare, compare_label=args.compare_label, **options
+            )
     except transfer.CellsFailed as error:
         print(f"peoplebot transfer: {error}", file=sys.stderr)
         return 1
     print((pathlib.Path(out) / "transfer.md").read_text())
-    print(f"transfer folder: {out} (transfer.json, transfer.md, figures/, cells/)")
+    runs = ", <run>/ per run" if several else ""
+    print(f"transfer folder: {out} (transfer.json, transfer.md, figures/, cells/{runs})")
     return 0
 
 
@@ -540,15 +555,19 @@ def build_parser() -> argparse.ArgumentParser:
     tra.add_argument(
         "--reuse-from",
         type=pathlib.Path,
+        nargs="+",
         required=True,
-        help="the finished run folder whose networks and test stream are tested",
+        metavar="RUN",
+        help="the finished run folder whose networks and test stream are tested; several runs "
+        "that differ by seed only, or a sweep folder (its cells), give the envelope over the "
+        "seeds (each run's grid in OUT/<run folder>/, the mean and the worst run in OUT)",
     )
     tra.add_argument(
         "--out",
         type=pathlib.Path,
         default=None,
-        help="the transfer's folder (default: renders/transfer/<run folder>-<vision>[-<preset>]); "
-        "rerun to resume",
+        help="the transfer's folder (default: renders/transfer/<run or sweep folder>-<vision>"
+        "[-<preset>], for several runs <first>-to-<last>-<vision>[-<preset>]); rerun to resume",
     )
     tra.add_argument(
         "--compare",

@@ -603,9 +603,9 @@ def wilson_interval(rate: float | None, trials: int | None) -> tuple[float, floa
 
 def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
     """Draws ``<family>.png`` per family: success per policy and word with its 95% Wilson
-    interval (left) and correct
-    recognition per read-out and word (right) against the level (a compared run's in their own
-    colours); returns the paths."""
+    interval (left) and correct recognition per read-out and word (right) against the level (a
+    compared run's in their own colours; a summary over several runs, ``transfer_runs``: their
+    mean, the interval of their pooled trials); returns the paths."""
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     styles = {"go": "-", "pick": "--", "lift": ":"}
@@ -668,7 +668,8 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
             axis.set_ylim(-0.05, 1.05)
             axis.set_title(title)
             axis.legend(fontsize=6, ncol=1, loc="center left", bbox_to_anchor=(1.0, 0.5))
-        fig.suptitle(f"{family} ({summary['vision']} vision)")
+        runs = f", {len(summary['runs'])} runs' trials pooled" if "runs" in summary else ""
+        fig.suptitle(f"{family} ({summary['vision']} vision{runs})")
         fig.tight_layout()
         path = folder / f"{family}.png"
         tmp = storage.temporary_name(path)

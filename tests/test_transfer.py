@@ -9,7 +9,7 @@ import math
 import pytest
 
 from associator import encoding
-from imitation import reproduce, transfer
+from imitation import reproduce, transfer, transfer_runs
 from imitation.cli import main
 from imitation.config import RunConfig
 from imitation.runstate import RunState
@@ -80,6 +80,13 @@ def randomised_run(tmp_path_factory):
     """Returns the same tiny run trained with the perception faults randomised."""
     config = RunConfig.quick().replace({**TINY, "randomisation.families": ["pose_noise"]})
     return _trained(tmp_path_factory.mktemp("randomised"), config)
+
+
+@pytest.fixture(scope="module")
+def other_seed_run(tmp_path_factory):
+    """Returns the tiny run of ``trained_run`` with another seed (streams and networks new)."""
+    config = RunConfig.quick().replace({**TINY, "randomisation.families": [], "seed": 1})
+    return _trained(tmp_path_factory.mktemp("seedone"), config)
 
 
 def test_transfer_reports_each_level_and_the_envelope_and_resumes(trained_run, tmp_path, local_ray):
@@ -243,3 +250,105 @@ def test_ray_tasks_report_each_outcome_and_a_failure_in_one_line(local_ray):
     assert outcomes["b"].value is None and outcomes["b"].error == "ValueError: negative: -1"
     with pytest.raises(ValueError, match="workers must be at least 1"):
         next(raytasks.run_tasks(_square, {}, workers=0))
+
+
+def test_several_runs_give_the_envelope_over_seeds_and_resume(
+    trained_run, other_seed_run, tmp_path, local_ray
+):
+    out = tmp_path / "seeds"
+    argv = ["transfer", "--reuse-from", str(trained_run), str(other_seed_run), "--out", str(out)]
+    argv += ["--families", "latency", "--levels", "0,3", "--trials", "1"]
+    argv += ["--vision-test-steps", "50", "--workers", "2"]
+    assert main(argv) == 0
+    runs = [
+        json.loads((out / r.name / "transfer.json").read_text())
+        for r in (trained_run, other_seed_run)
+    ]
+    summary = json.loads((out / "transfer.json").read_text())
+    assert list(summary["runs"]) == [trained_run.name, other_seed_run.name]
+    for i, level in enumerate(summary["families"]["latency"]["levels"]):
+        mine = [r["families"]["latency"]["levels"][i] for r in runs]
+        for policy in ("student", "teacher"):
+            for word in ("go", "pick", "lift"):
+                rates = [m["performance"][policy][word] for m in mine]
+                assert level["performance"][policy][word] == pytest.approx(sum(rates) / 2)
+                assert level["worst_performance"][policy][word] == min(rates)
+                assert level["trials"][policy][word] == 2  # pooled: one a run
+        rates = [m["recognition"]["paper"]["go"] for m in mine]  # 50 steps: 'go' only
+        assert level["worst_recognition"]["paper"]["go"] == min(rates)
+        assert level["recognition"]["paper"]["go"] == pytest.approx(sum(rates) / 2)
+    text = (out / "transfer.md").read_text()
+    assert "Transfer over 2 runs" in text and "of the worst run" in text
+    assert (out / "figures" / "latency.png").stat().st_size > 10_000
+
+    # A rerun keeps every run's finished cells.
+    before = _numbers(out / "transfer.json")
+    kept = out / other_seed_run.name / "cells" / "latency-3" / "performance_trials.json"
+    mtime = kept.stat().st_mtime_ns
+    assert main(argv) == 0
+    assert kept.stat().st_mtime_ns == mtime and _numbers(out / "transfer.json") == before
+
+
+def test_the_envelope_over_runs_is_of_their_mean_and_of_the_worst_run():
+    def run(go_rates):
+        levels = [{}, {"perception.latency_ms": 50}, {"perception.latency_ms": 200}]
+        return {
+            "source": "run",
+            "vision": "truth",
+            "randomisation": None,
+            "policies": ["teacher"],
+            "base_perturbations": {},
+            "trials_per_row": 10,
+            "recognition_steps": 600,
+            "cpu_seconds": 1.0,
+            "families": {
+                "latency": {
+                    "levels": [
+                        {
+                            "index": i,
+                            "label": transfer.level_label(level),
+                            "settings": level,
+                            "performance": {"teacher": {"go": rate}},
+                            "recognition": {"paper": {"go": 0.5}},
+                            "trials": {"teacher": {"go": 10}},
+                            "seen_fraction": 1.0,
+                        }
+                        for i, (level, rate) in enumerate(zip(levels, go_rates, strict=True))
+                    ]
+                }
+            },
+        }
+
+    combined = transfer_runs.combine({"a": run([1.0, 1.0, 0.9]), "b": run([1.0, 0.7, 0.7])})
+    latency = combined["families"]["latency"]
+    assert [lv["performance"]["teacher"]["go"] for lv in latency["levels"]] == pytest.approx(
+        [1.0, 0.85, 0.8]
+    )
+    assert latency["envelope"]["teacher"]["go"] == "latency_ms=200"  # the mean holds 80%
+    assert latency["worst_envelope"]["teacher"]["go"] == "0"  # run b falls below at 50 ms
+    assert "latency_ms=200 (0)" in transfer_runs.markdown(combined)
+    other = run([1.0, 1.0, 1.0])
+    other["trials_per_row"] = 3
+    with pytest.raises(ValueError, match="differ in trials_per_row"):
+        transfer_runs.combine({"a": run([1.0, 1.0, 1.0]), "b": other})
+
+
+def test_several_runs_must_differ_by_seed_only(
+    trained_run, randomised_run, other_seed_run, tmp_path, capsys
+):
+    argv = ["transfer", "--reuse-from", str(trained_run), str(randomised_run)]
+    assert main([*argv, "--out", str(tmp_path / "t")]) == 2
+    assert "randomisation.families" in capsys.readouterr().err
+    argv = ["transfer", "--reuse-from", str(trained_run), str(other_seed_run)]
+    assert main([*argv, "--compare", str(randomised_run), "--out", str(tmp_path / "t")]) == 2
+    assert "--compare takes one --reuse-from run, got 2" in capsys.readouterr().err
+    for parent in ("a", "b"):
+        (tmp_path / parent / "run").mkdir(parents=True)
+    with pytest.raises(ValueError, match="two runs in folders called 'run'"):
+        transfer_runs.expand_sources([tmp_path / "a" / "run", tmp_path / "b" / "run"])
+    sweep = tmp_path / "sweep"
+    for cell in ("seed2", "seed1"):
+        (sweep / "cells" / cell).mkdir(parents=True)
+        (sweep / "cells" / cell / "state.json").write_text("{}")
+    (sweep / "sweep.json").write_text("{}")
+    assert [p.name for p in transfer_runs.expand_sources([sweep])] == ["seed1", "seed2"]
