@@ -229,6 +229,7 @@ def _cmd_transfer(args) -> int:
         fresh=args.fresh,
         address=args.address,
         workers=args.workers,
+        combined=None if args.combined == "none" else args.combined,
     )
     try:
         if several:
@@ -547,8 +548,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="A trained run's networks under each perturbation family and level, as Ray "
         "tasks. By default: every family that acts in the vision mode at 3 levels (0, the "
         "anchor's level and one past it), 10 trials per row and policy of the source's trial "
-        "length, 3000 recognition steps; in the 'truth' mode 21 cells, about 10 minutes on 2 "
-        "idle cores (--quick: 9 cells, about 2 minutes). Camera modes watch and perform through "
+        "length, 3000 recognition steps, and one cell of every family at once at the realistic "
+        "preset's levels; in the 'truth' mode 22 cells, about 10 minutes on 2 idle cores "
+        "(--quick: 10 cells, about 2 minutes). Camera modes watch and perform through "
         "the camera and take far longer. Timings and grids: docs/transfer.md.",
         parents=[debug],
     )
@@ -615,6 +617,14 @@ def build_parser() -> argparse.ArgumentParser:
         choices=PERTURBATION_PRESETS,
         default=None,
         help="perturbations under every level (e.g. realistic); default none",
+    )
+    tra.add_argument(
+        "--combined",
+        choices=(*PERTURBATION_PRESETS, "none"),
+        default="realistic",
+        help="one more cell with every family at once at this preset's levels, the report's "
+        "combined row (default realistic; none: no such cell; none either with --preset, whose "
+        "levels are then the baseline's)",
     )
     tra.add_argument(
         "--trials",

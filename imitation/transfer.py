@@ -202,6 +202,15 @@ def cell_name(base: RunConfig, family: str, index: int) -> str:
     return "baseline" if config == base else f"{family}-{index}"
 
 
+def combined_cell(base: RunConfig, preset: str | None) -> TransferCell | None:
+    """Returns the cell of every family at once at the named preset's levels (the report's
+    combined row), or None without a preset or where the base already has those perturbations."""
+    if preset is None:
+        return None
+    config = dataclasses.replace(base, perturbations=perturbations.preset(preset))
+    return None if config == base else TransferCell(f"combined-{preset}", (), config)
+
+
 def finished_cell(cell: TransferCell, folder: pathlib.Path, fresh: bool = False):
     """Returns the numbers of ``cell`` if ``folder`` holds it finished, else None after making
     the folder ready to run it (``fresh``: what an earlier run wrote there is removed; a stage
@@ -373,6 +382,7 @@ def transfer(
     progress: bool = True,
     compare=None,
     compare_label: str | None = None,
+    combined: str | None = "realistic",
 ) -> dict:
     """Tests the networks of the finished run in ``source`` under each family's levels (see the
     module notes) in ``out``; returns the summary (what ``transfer.json`` holds).
@@ -387,7 +397,9 @@ def transfer(
     ``OUT/compare/cells/``, without the teacher) and reported beside these as
     ``"<policy> (<compare_label>)"`` (default label: 'randomised' or 'unrandomised' for a run
     trained with domain randomisation where the source was not, or the other way round, else its
-    folder's name)."""
+    folder's name); ``combined``: a preset (``perturbations.PRESETS``) whose levels, all at once
+    in place of the base's perturbations, are one more cell, the report's combined row (None:
+    none; none either where the base's perturbations are already that preset's)."""
     source, out = pathlib.Path(source).resolve(), pathlib.Path(out).resolve()
     settings = {
         "videos.enabled": False,
@@ -400,6 +412,8 @@ def transfer(
         base = dataclasses.replace(base, perturbations=base_perturbations)
     families = parse_families(None, base.vision.mode) if families is None else tuple(families)
     rows, cells = plan(base, families, levels)
+    together = combined_cell(base, combined)
+    cells = [*cells, together] if together is not None else cells
     # Every cell to run: (its key, the run whose networks it tests, its folder, the cell).
     todo = [(cell.name, source, out / "cells" / cell.name, cell) for cell in cells]
     other = None
@@ -410,6 +424,8 @@ def transfer(
         if compare_label is None:
             compare_label = _compare_label(base.randomisation, other.randomisation, compare.name)
         _, other_cells = plan(other, families, levels)
+        if together is not None:
+            other_cells.append(combined_cell(other, combined))
         todo += [
             (f"compare/{c.name}", compare, out / "compare" / "cells" / c.name, c)
             for c in other_cells
@@ -455,6 +471,12 @@ def transfer(
             for cell in cells
         }
     summary = _summary(source, base, families, rows, results, policies)
+    if together is not None:
+        summary["combined"] = {
+            "preset": combined,
+            "cell": together.name,
+            **results[together.name].to_json(),
+        }
     if other is not None:
         summary["compare"] = {
             "source": str(compare),
@@ -519,10 +541,8 @@ def _policies(summary: dict) -> list[str]:
 
 
 def _over_time(recognition: dict, label: str | None = None) -> dict:
-    """Returns the read-out a table shows: the hierarchical associator over time, or the paper's
-    network without it (of the compared run: ``label``)."""
-    tag = f" ({label})" if label else ""
-    return recognition.get(f"hierarchical_over_time{tag}") or recognition.get(f"paper{tag}", {})
+    """Returns the numbers of the read-out a table shows (``over_time_readout``)."""
+    return recognition.get(over_time_readout(recognition, label), {})
 
 
 def markdown(summary: dict) -> str:
@@ -556,6 +576,8 @@ def markdown(summary: dict) -> str:
         ]
         lines.append(f"| {family} | " + " | ".join(cells) + " |")
     recognitions = [None, label] if label else [None]
+    if "combined" in summary:
+        lines += combined_table(summary["combined"], policies, recognitions)
     for family, data in summary["families"].items():
         lines += [
             "",
@@ -585,6 +607,37 @@ def markdown(summary: dict) -> str:
                 + " |"
             )
     return "\n".join(lines) + "\n"
+
+
+def combined_table(combined: dict, policies, recognitions=(None,), show=None) -> list[str]:
+    """Returns the markdown lines of the combined row: every family at once at the preset's
+    levels. ``show(field, name, word)`` formats one rate (default: the percentage of
+    ``combined[field][name][word]``)."""
+    if show is None:
+
+        def show(field: str, name: str, word: str) -> str:
+            return _pct(combined[field].get(name, {}).get(word))
+
+    heads = [f"recognition{f' ({t})' if t else ''} go / pick / lift" for t in recognitions]
+    readouts = [over_time_readout(combined["recognition"], t) for t in recognitions]
+    rec = [" / ".join(show("recognition", r, w) for w in WORDS) for r in readouts]
+    perf = [" / ".join(show("performance", p, w) for w in WORDS) for p in policies]
+    return [
+        "",
+        f"## Every family at once: the `{combined['preset']}` preset's levels",
+        "",
+        "| seen | " + " | ".join(heads + [f"{p} go / pick / lift" for p in policies]) + " |",
+        "|---|" + "---|" * (len(heads) + len(policies)),
+        f"| {_pct(combined['seen_fraction'])} | " + " | ".join(rec + perf) + " |",
+    ]
+
+
+def over_time_readout(recognition: dict, label: str | None = None) -> str:
+    """Returns the name of the read-out a table shows: the hierarchical associator over time, or
+    the paper's network without it (of the compared run: ``label``)."""
+    tag = f" ({label})" if label else ""
+    name = f"hierarchical_over_time{tag}"
+    return name if recognition.get(name) else f"paper{tag}"
 
 
 def wilson_interval(rate: float | None, trials: int | None) -> tuple[float, float]:

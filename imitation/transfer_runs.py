@@ -98,6 +98,7 @@ def _grid(summary: dict) -> dict:
         "families": {
             f: [lv["label"] for lv in d["levels"]] for f, d in summary["families"].items()
         },
+        "combined": (summary.get("combined") or {}).get("preset"),
         **{
             key: summary[key]
             for key in (
@@ -161,23 +162,11 @@ def combine(summaries: dict) -> dict:
         levels, mean_results, worst_results = [], [], []
         for i, level in enumerate(data["levels"]):
             runs = [summaries[name]["families"][family]["levels"][i] for name in names]
-            performance = _gather(runs, "performance")
-            recognition = _gather(runs, "recognition")
-            trials = _gather(runs, "trials")
             combined = {
                 "index": level["index"],
                 "label": level["label"],
                 "settings": level["settings"],
-                "performance": _map(performance, _mean),
-                "worst_performance": _map(performance, _worst),
-                "recognition": _map(recognition, _mean),
-                "worst_recognition": _map(recognition, _worst),
-                "trials": _map(trials, lambda v: int(sum(x or 0 for x in v))),
-                "seen_fraction": _mean([r["seen_fraction"] for r in runs]),
-                "per_run": {
-                    name: {"performance": r["performance"], "recognition": r["recognition"]}
-                    for name, r in zip(names, runs, strict=True)
-                },
+                **_over_runs(dict(zip(names, runs, strict=True))),
             }
             levels.append(combined)
             mean_results.append(transfer.CellResult({}, 1.0, combined["performance"], {}))
@@ -188,7 +177,7 @@ def combine(summaries: dict) -> dict:
             "envelope": transfer.envelope(settings, mean_results, policies),
             "worst_envelope": transfer.envelope(settings, worst_results, policies),
         }
-    return {
+    out = {
         "version": SUMMARY_VERSION,
         "runs": {name: summaries[name]["source"] for name in names},
         "vision": first["vision"],
@@ -201,6 +190,35 @@ def combine(summaries: dict) -> dict:
         "cpu_seconds": sum(s["cpu_seconds"] for s in summaries.values()),
         "families": families,
         "versions": package_versions(),
+    }
+    if "combined" in first:
+        runs = {name: summaries[name]["combined"] for name in names}
+        out["combined"] = {
+            "preset": first["combined"]["preset"],
+            "cell": first["combined"]["cell"],
+            **_over_runs(runs),
+        }
+    return out
+
+
+def _over_runs(runs: dict) -> dict:
+    """Returns one cell's numbers over the runs ``{run name: cell numbers}``: the mean and the
+    worst run's performance and recognition, the pooled trials, the mean seen fraction and
+    each run's own rates."""
+    cells = list(runs.values())
+    performance = _gather(cells, "performance")
+    recognition = _gather(cells, "recognition")
+    return {
+        "performance": _map(performance, _mean),
+        "worst_performance": _map(performance, _worst),
+        "recognition": _map(recognition, _mean),
+        "worst_recognition": _map(recognition, _worst),
+        "trials": _map(_gather(cells, "trials"), lambda v: int(sum(x or 0 for x in v))),
+        "seen_fraction": _mean([c["seen_fraction"] for c in cells]),
+        "per_run": {
+            name: {"performance": c["performance"], "recognition": c["recognition"]}
+            for name, c in runs.items()
+        },
     }
 
 
@@ -239,6 +257,15 @@ def markdown(summary: dict) -> str:
                 worst = data["worst_envelope"].get(policy, {}).get(word) or "none"
                 cells.append(f"{mean} ({worst})")
         lines.append(f"| {family} | " + " | ".join(cells) + " |")
+    if "combined" in summary:
+        combined = summary["combined"]
+
+        def show(field: str, name: str, word: str) -> str:
+            mean = combined[field].get(name, {}).get(word)
+            worst = combined[f"worst_{field}"].get(name, {}).get(word)
+            return f"{_pct(mean)} ({_pct(worst)})"
+
+        lines += transfer.combined_table(combined, policies, show=show)
     for family, data in summary["families"].items():
         lines += [
             "",
@@ -250,11 +277,7 @@ def markdown(summary: dict) -> str:
             "|---|---|---|" + "---|" * len(policies),
         ]
         for level in data["levels"]:
-            readout = (
-                "hierarchical_over_time"
-                if "hierarchical_over_time" in level["recognition"]
-                else "paper"
-            )
+            readout = transfer.over_time_readout(level["recognition"])
 
             def both(mean: dict, worst: dict, name: str) -> str:
                 return " / ".join(
@@ -265,7 +288,7 @@ def markdown(summary: dict) -> str:
             rec = both(level["recognition"], level["worst_recognition"], readout)
             perf = [both(level["performance"], level["worst_performance"], p) for p in policies]
             lines.append(
-                f"| {level['label']} | {_pct(level['seen_fraction'])} | {rec} | "
+                f"| {level['label']} | {100 * level['seen_fraction']:.0f}% | {rec} | "
                 + " | ".join(perf)
                 + " |"
             )

@@ -3,6 +3,7 @@
 import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
 # isort: split
+import dataclasses
 import json
 import math
 
@@ -133,6 +134,13 @@ def test_transfer_reports_each_level_and_the_envelope_and_resumes(trained_run, t
         assert set(summary["families"][family]["envelope"]) == {"student", "teacher"}
     text = (out / "transfer.md").read_text()
     assert "Operating envelope" in text and "latency_ms=200" in text
+    # The combined row: every family at once at the realistic preset's levels, one more cell.
+    combined = summary["combined"]
+    assert (combined["preset"], combined["cell"]) == ("realistic", "combined-realistic")
+    assert combined["trials"]["teacher"]["lift"] == 1 and combined["seen_fraction"] < 1.0
+    cell_config = json.loads((out / "cells" / "combined-realistic" / "state.json").read_text())
+    assert cell_config["config"]["perturbations"]["actuation"]["linear_accel_mps2"] == 0.3
+    assert "Every family at once: the `realistic` preset's levels" in text
 
     # A rerun keeps every finished cell; a cell whose trials file was lost runs its trials again
     # (on Ray: the cells ran there, through the same machinery as peoplebot sweep's).
@@ -148,9 +156,10 @@ def test_transfer_reports_each_level_and_the_envelope_and_resumes(trained_run, t
     # Other settings in a finished cell are refused in one line; --fresh starts over.
     trials_2 = [*argv, "--trials", "2"]  # the last --trials counts
     assert main(trials_2) == 2
-    assert main([*trials_2, "--fresh"]) == 0
+    assert main([*trials_2, "--fresh", "--combined", "none"]) == 0
     again = json.loads((out / "transfer.json").read_text())
     assert again["families"]["latency"]["levels"][0]["trials"]["teacher"]["lift"] == 2
+    assert "combined" not in again
 
 
 def test_a_compared_run_appears_in_the_same_report(
@@ -229,6 +238,13 @@ def test_the_default_grid_is_what_the_help_says():
     assert len(cells) == 21 and len(rows) == 30  # --help: 21 cells in the 'truth' mode
     quick = transfer.SCALES["quick"]
     assert len(transfer.plan(base, quick.families)[1]) == 9
+    # Plus the combined cell (22 and 10 in --help), which a base at the preset's levels lacks.
+    assert transfer.combined_cell(base, "realistic").config.perturbations == (
+        perturbations.preset("realistic")
+    )
+    preset_base = dataclasses.replace(base, perturbations=perturbations.preset("realistic"))
+    assert transfer.combined_cell(preset_base, "realistic") is None
+    assert transfer.combined_cell(base, None) is None
     assert (transfer.SCALES["default"].trials, quick.trials) == (10, 3)
 
 
@@ -279,6 +295,10 @@ def test_several_runs_give_the_envelope_over_seeds_and_resume(
         assert level["recognition"]["paper"]["go"] == pytest.approx(sum(rates) / 2)
     text = (out / "transfer.md").read_text()
     assert "Transfer over 2 runs" in text and "of the worst run" in text
+    rates = [r["combined"]["performance"]["teacher"]["go"] for r in runs]
+    assert summary["combined"]["performance"]["teacher"]["go"] == pytest.approx(sum(rates) / 2)
+    assert summary["combined"]["worst_performance"]["teacher"]["go"] == min(rates)
+    assert "Every family at once" in text
     assert (out / "figures" / "latency.png").stat().st_size > 10_000
 
     # A rerun keeps every run's finished cells.
