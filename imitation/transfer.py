@@ -658,7 +658,8 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
     """Draws ``<family>.png`` per family: success per policy and word with its 95% Wilson
     interval (left) and correct recognition per read-out and word (right) against the level (a
     compared run's in their own colours; a summary over several runs, ``transfer_runs``: their
-    mean, the interval of their pooled trials); returns the paths."""
+    mean, the interval of their pooled trials, and the worst run's as crosses); returns the
+    paths."""
     folder.mkdir(parents=True, exist_ok=True)
     paths = []
     styles = {"go": "-", "pick": "--", "lift": ":"}
@@ -697,6 +698,16 @@ def figures(summary: dict, folder: pathlib.Path) -> list[pathlib.Path]:
                         color=colours.get(policy, "C9"),
                         label=f"{policy} {word}",
                     )
+                    worst = [
+                        lv.get("worst_performance", {}).get(policy, {}).get(word) for lv in levels
+                    ]
+                    if any(v is not None for v in worst):  # over several runs: the worst one's
+                        left.plot(
+                            x,
+                            [float("nan") if v is None else v for v in worst],
+                            "x",
+                            color=colours.get(policy, "C9"),
+                        )
         for readout, colour in readout_colours.items():
             for word in WORDS:
                 y = [lv["recognition"].get(readout, {}).get(word) for lv in levels]
