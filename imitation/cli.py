@@ -549,7 +549,7 @@ def build_parser() -> argparse.ArgumentParser:
         "tasks. By default: every family that acts in the vision mode at 3 levels (0, the "
         "anchor's level and one past it), 10 trials per row and policy of the source's trial "
         "length, 3000 recognition steps, and one cell of every family at once at the realistic "
-        "preset's levels; in the 'truth' mode 22 cells, about 10 minutes on 2 idle cores "
+        "preset's levels; in the 'truth' mode 22 cells, about 12 minutes on 2 idle cores "
         "(--quick: 10 cells, about 2 minutes). Camera modes watch and perform through "
         "the camera and take far longer. Timings and grids: docs/transfer.md.",
         parents=[debug],
