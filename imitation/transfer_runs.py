@@ -226,6 +226,13 @@ def _pct(value) -> str:
     return "-" if value is None else f"{100 * value:.0f}"
 
 
+def _mean_worst(cell: dict, field: str, name: str, word: str) -> str:
+    """Returns "mean (worst run)" of one word's rate of a combined level or cell, percent."""
+    mean = cell[field].get(name, {}).get(word)
+    worst = cell[f"worst_{field}"].get(name, {}).get(word)
+    return f"{_pct(mean)} ({_pct(worst)})"
+
+
 def markdown(summary: dict) -> str:
     """Returns the combined ``transfer.md``: the envelopes of the mean and of the worst run, then
     per family the mean (worst run) of every level's numbers."""
@@ -259,13 +266,11 @@ def markdown(summary: dict) -> str:
         lines.append(f"| {family} | " + " | ".join(cells) + " |")
     if "combined" in summary:
         combined = summary["combined"]
-
-        def show(field: str, name: str, word: str) -> str:
-            mean = combined[field].get(name, {}).get(word)
-            worst = combined[f"worst_{field}"].get(name, {}).get(word)
-            return f"{_pct(mean)} ({_pct(worst)})"
-
-        lines += transfer.combined_table(combined, policies, show=show)
+        lines += transfer.combined_table(
+            combined,
+            policies,
+            show=lambda field, name, word: _mean_worst(combined, field, name, word),
+        )
     for family, data in summary["families"].items():
         lines += [
             "",
@@ -278,15 +283,10 @@ def markdown(summary: dict) -> str:
         ]
         for level in data["levels"]:
             readout = transfer.over_time_readout(level["recognition"])
-
-            def both(mean: dict, worst: dict, name: str) -> str:
-                return " / ".join(
-                    f"{_pct(mean.get(name, {}).get(w))} ({_pct(worst.get(name, {}).get(w))})"
-                    for w in WORDS
-                )
-
-            rec = both(level["recognition"], level["worst_recognition"], readout)
-            perf = [both(level["performance"], level["worst_performance"], p) for p in policies]
+            rec = " / ".join(_mean_worst(level, "recognition", readout, w) for w in WORDS)
+            perf = [
+                " / ".join(_mean_worst(level, "performance", p, w) for w in WORDS) for p in policies
+            ]
             lines.append(
                 f"| {level['label']} | {100 * level['seen_fraction']:.0f}% | {rec} | "
                 + " | ".join(perf)
