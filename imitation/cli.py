@@ -90,6 +90,12 @@ def _cmd_track_bench(args) -> int:
     return 0
 
 
+BRAKE_AHEAD_HELP = (
+    "on: the students, told their robot's acceleration limits, ask their network at the pose "
+    "where braking now would bring them to rest; off: at their pose (default: the run's "
+    "performance.brake_ahead, on; no change on a robot without limits)"
+)
+
 #: Command-line options of ``reproduce`` and the config keys they set.
 REPRODUCE_OPTIONS = {
     "seed": "seed",
@@ -134,6 +140,8 @@ def reproduce_config(args):
         changes["randomisation.families"] = list(randomisation.parse_families(args.randomise))
     if getattr(args, "randomise_level", None) is not None:
         changes["randomisation.upper_level"] = args.randomise_level
+    if getattr(args, "brake_ahead", None) is not None:
+        changes["performance.brake_ahead"] = args.brake_ahead == "on"
     return config.replace(changes)
 
 
@@ -146,6 +154,11 @@ def _randomisation_suffix(chosen) -> str:
     return "-randomised-" + "-".join(chosen.families) if chosen.active else "-unrandomised"
 
 
+def _brake_ahead_suffix(args) -> str:
+    """Returns the default folder's suffix for an explicit ``--brake-ahead``."""
+    return "" if args.brake_ahead is None else f"-brake-ahead-{args.brake_ahead}"
+
+
 def _cmd_reproduce(args) -> int:
     from imitation.reproduce import run
 
@@ -156,6 +169,7 @@ def _cmd_reproduce(args) -> int:
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
         f"{vision}-{config.learning.motor_source}-seed{config.seed}"
         + _randomisation_suffix(config.randomisation)
+        + _brake_ahead_suffix(args)
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
@@ -200,6 +214,8 @@ def _cmd_transfer(args) -> int:
     }
     if args.trial_seconds is not None:
         changes["performance.trial_seconds"] = args.trial_seconds
+    if args.brake_ahead is not None:
+        changes["performance.brake_ahead"] = args.brake_ahead == "on"
     sources = transfer_runs.expand_sources(args.reuse_from)
     if not sources:
         raise ValueError(f"--reuse-from {args.reuse_from[0]} is a sweep folder without run cells")
@@ -215,7 +231,7 @@ def _cmd_transfer(args) -> int:
     else:
         name = f"{sources[0].name}-to-{sources[-1].name}"
     out = args.out or RENDERS / "transfer" / (
-        f"{name}-{vision}" + (f"-{args.preset}" if args.preset else "")
+        f"{name}-{vision}" + (f"-{args.preset}" if args.preset else "") + _brake_ahead_suffix(args)
     )
     families = args.families
     if families is None and scale.families is not None:
@@ -509,6 +525,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="the student's wheels follow its graded motor activations (default) or the "
         "strongest directive",
     )
+    rep.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
     rep.add_argument("--no-videos", action="store_true", help="skip the student videos")
     rep.add_argument(
         "--mcap",
@@ -618,6 +635,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="perturbations under every level (e.g. realistic); default none",
     )
+    tra.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
     tra.add_argument(
         "--combined",
         choices=(*PERTURBATION_PRESETS, "none"),

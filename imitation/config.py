@@ -209,16 +209,25 @@ class PerformanceConfig:
       drive: how the student's motor area drives its wheels: 'graded' (the activations set the
         wheel speeds) or 'directive' (the strongest unit's directive at its fixed speeds).
       success: the success rules' numbers.
+      brake_ahead: the students are told the acceleration limits of the robot they drive
+        (``perturbations.actuation``, as the teacher's reference row is) and ask their network at
+        the pose where braking now would bring them to rest (``performance.braking_pose``); no
+        change on a robot without limits. On by default since version 0.9.0.
     """
 
     trials: int = 50
     trial_seconds: float = 60.0
     drive: str = "graded"
     success: SuccessConfig = SuccessConfig()
+    brake_ahead: bool = True
 
     def __post_init__(self):
         _check_count("performance.trials", self.trials)
         _check_choice("performance.drive", self.drive, DRIVE_MODES)
+        if not isinstance(self.brake_ahead, bool):
+            raise ValueError(
+                f"performance.brake_ahead must be true or false, got {self.brake_ahead!r}"
+            )
         value = self.trial_seconds
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 5):
             raise ValueError(f"performance.trial_seconds must be at least 5 s, got {value!r}")

@@ -33,6 +33,7 @@ from associator import encoding
 from associator.network import Associator
 from imitation.observers import StudentVision, pose_or_nan
 from peoplebot_sim.entities import BASE_RADIUS_M
+from peoplebot_sim.hardware import Actuation, braking_travel
 from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception.drive import DriveSpeeds
 from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall, wrap_degrees
@@ -85,6 +86,9 @@ class StudentAgent:
       action_spec: the environment's action spec (actions are clipped into it).
       drive: wheel speeds of the directives.
       graded: drive with the graded motor activations instead of the winning directive.
+      brake_ahead: the acceleration limits of the robot it drives, if it is told them: it then
+        asks the network at the pose where it would come to rest braking now from its measured
+        speeds (``braking_pose``), as the teacher brakes ahead; None: at its pose.
     """
 
     def __init__(
@@ -97,6 +101,7 @@ class StudentAgent:
         drive: DriveSpeeds = DriveSpeeds(),
         graded: bool = False,
         arena: ArenaGeometry = ArenaGeometry(),
+        brake_ahead: Actuation | None = None,
     ):
         if word not in model.vocabulary:
             raise ValueError(
@@ -104,6 +109,7 @@ class StudentAgent:
             )
         self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
         self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
+        self.brake_ahead = brake_ahead
         self.reset()
 
     def reset(self, timestep=None, start_pose=None) -> None:
@@ -113,13 +119,19 @@ class StudentAgent:
         self.directive, self.motor, self.own_pose = None, np.zeros(4), None
         self.own_covariance = None
         self.time_s = 0.0
+        self.query_pose, self._last_pose = None, None
 
-    def command(self, own_pose) -> tuple[float, float]:
-        """Returns ``(linear m/s, yaw rate rad/s)`` for an own-pose estimate (None: stand still)."""
+    def command(self, own_pose, dt: float = 0.1) -> tuple[float, float]:
+        """Returns ``(linear m/s, yaw rate rad/s)`` for an own-pose estimate (None: stand still);
+        ``dt``: seconds since the previous estimate (for the measured speeds)."""
+        last, self._last_pose = self._last_pose, own_pose
         if own_pose is None:
-            self.directive, self.motor = None, np.zeros(4)
+            self.directive, self.motor, self.query_pose = None, np.zeros(4), None
             return 0.0, 0.0
-        wall = world_to_wall(*own_pose, self.arena)
+        self.query_pose = own_pose
+        if self.brake_ahead is not None and last is not None:
+            self.query_pose = braking_pose(last, own_pose, dt, self.brake_ahead)
+        wall = world_to_wall(*self.query_pose, self.arena)
         vision = self.encoder.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True)
         result = self.model.perform(vision, self.word)
         self.directive, self.motor = result.directive, result.motor
@@ -134,7 +146,22 @@ class StudentAgent:
         localisation = getattr(self.vision, "localisation", None)
         self.own_covariance = None if localisation is None else localisation.covariance
         self.time_s += dt
-        return make_action(self.spec, self.command(self.own_pose), self.vision.head_command)
+        return make_action(self.spec, self.command(self.own_pose, dt), self.vision.head_command)
+
+
+def braking_pose(previous, pose, dt: float, limits: Actuation) -> tuple[float, float, float]:
+    """Returns where a robot at ``pose`` comes to rest if it brakes now at the acceleration limits
+    ``limits`` from the speeds measured between ``previous`` and ``pose`` (each ``(x, y, yaw)``,
+    world metres and radians, ``dt`` seconds apart): its heading turned on by the yaw rate's
+    braking travel and its position moved by the forward speed's along the mean heading."""
+    x0, y0, yaw0 = (float(v) for v in previous)
+    x, y, yaw = (float(v) for v in pose)
+    speed_mps = ((x - x0) * math.cos(yaw) + (y - y0) * math.sin(yaw)) / dt
+    yaw_rate_degps = wrap_degrees(math.degrees(yaw - yaw0)) / dt
+    turn = math.radians(braking_travel(yaw_rate_degps, limits.yaw_accel_degps2))
+    travel = braking_travel(speed_mps, limits.linear_accel_mps2)
+    heading = yaw + 0.5 * turn
+    return x + travel * math.cos(heading), y + travel * math.sin(heading), yaw + turn
 
 
 def make_action(spec, drive_command, head_command=(0.0, 0.0)) -> np.ndarray:

@@ -119,6 +119,7 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
         drive=config.drive,
         graded=config.performance.drive == "graded",
         arena=env.task.geometry,
+        brake_ahead=config.perturbations.actuation if config.performance.brake_ahead else None,
     )
 
 

@@ -61,6 +61,13 @@ class Actuation:
         return self != Actuation()
 
 
+def braking_travel(rate: float, limit: float) -> float:
+    """Returns how far a rate carries on while a set-point ramp at ``limit`` brings it to rest,
+    ``rate |rate| / (2 limit)`` (signed as ``rate``; units of the rate times seconds, e.g. m/s
+    and m/s^2 give metres); 0 without a limit (``limit`` 0: the rate changes at once)."""
+    return rate * abs(rate) / (2.0 * limit) if limit > 0 else 0.0
+
+
 @dataclasses.dataclass(frozen=True)
 class Body:
     """The student's body (0: nominal).

@@ -31,6 +31,7 @@ import math
 import numpy as np
 
 from associator.encoding import DIRECTIVES
+from peoplebot_sim.hardware import braking_travel
 from perception.wallframe import ArenaGeometry, world_to_wall, wrap_degrees
 
 #: How the teacher's 'pick' reaches the dock (``TeacherConfig.docking``).
@@ -392,8 +393,7 @@ class Teacher:
     def _stopping_distance_m(self) -> float:
         """Returns how far the robot rolls on, metres, braking now from its measured forward speed
         at ``robot_linear_accel_mps2`` (0 without a limit: the speeds change at once)."""
-        a = self.config.robot_linear_accel_mps2
-        return self._speed_mps**2 / (2.0 * a) if a > 0 and self._speed_mps > 0 else 0.0
+        return max(0.0, braking_travel(self._speed_mps, self.config.robot_linear_accel_mps2))
 
     def _blocking_obstacle(self, x, y, yaw, student):
         """Returns the bearing of the most pressing obstacle the robot must turn away from, or None
@@ -566,8 +566,7 @@ class Teacher:
             self.phase = "square"
         # 'square': stand square to the table.
         if c.robot_yaw_accel_degps2 > 0:  # square and settle: where a turn braked now would end
-            rate = self._yaw_rate_degps
-            heading_error -= rate * abs(rate) / (2.0 * c.robot_yaw_accel_degps2)
+            heading_error -= braking_travel(self._yaw_rate_degps, c.robot_yaw_accel_degps2)
         if self.phase == "approach" or self.phase == "square":
             if abs(heading_error) > c.dock_heading_tol_deg:
                 self.phase = "square"

@@ -5,17 +5,19 @@ name."""
 import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
 # isort: split
+import math
+
 import numpy as np
 import pytest
 
 from associator import encoding
-from imitation import learning, performance
+from imitation import learning, performance, trials
 from imitation.cli import main
 from imitation.config import RunConfig
 from imitation.observers import Calibration, StudentVision
 from imitation.performance import StudentAgent, TeacherAgent, make_action
 from imitation.recognition import watch_with_vision
-from peoplebot_sim import task
+from peoplebot_sim import hardware, task
 from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall
 
@@ -70,6 +72,75 @@ def test_student_actions_in_truth_mode_satisfy_the_spec(student_env, trained_ass
             np.testing.assert_array_equal(actions[:, 2:], 0.0)
             assert agent.directive in ("forward", "backward", "turn_right", "turn_left")
             assert agent.motor.shape == (4,) and np.all(np.isfinite(agent.motor))
+
+
+def test_braking_pose_is_where_braking_at_the_limits_brings_the_robot_to_rest():
+    """0.3 m/s braked at 0.3 m/s^2 rolls 0.15 m; 60 deg/s braked at 100 deg/s^2 turns 18 deg more,
+    and the position moves along the mean heading; backing, it rolls on backwards; without limits
+    the pose is the robot's."""
+    aria = hardware.Actuation(linear_accel_mps2=0.3, yaw_accel_degps2=100.0)
+    x, y, yaw = performance.braking_pose((0.0, 0.0, 0.0), (0.03, 0.0, 0.0), 0.1, aria)
+    np.testing.assert_allclose((x, y, yaw), (0.18, 0.0, 0.0), atol=1e-12)
+    turned = math.radians(6.0)
+    x, y, yaw = performance.braking_pose((0.0, 0.0, 0.0), (0.0, 0.0, turned), 0.1, aria)
+    np.testing.assert_allclose((x, y, yaw), (0.0, 0.0, turned + math.radians(18.0)), atol=1e-12)
+    pose = (0.02 * math.cos(turned), 0.02 * math.sin(turned), turned)  # 0.2 m/s while turning
+    x, y, yaw = performance.braking_pose((0.0, 0.0, 0.0), pose, 0.1, aria)
+    travel, heading = 0.2**2 / 0.6, turned + math.radians(9.0)
+    np.testing.assert_allclose(
+        (x, y), (pose[0] + travel * math.cos(heading), pose[1] + travel * math.sin(heading))
+    )
+    x, _, _ = performance.braking_pose((0.5, 0.0, 0.0), (0.47, 0.0, 0.0), 0.1, aria)
+    assert x == pytest.approx(0.47 - 0.15)
+    still = performance.braking_pose((0.0, 0.0, 0.0), (0.03, 0.01, 0.1), 0.1, hardware.Actuation())
+    assert still == pytest.approx((0.03, 0.01, 0.1))
+
+
+def test_a_student_told_its_limits_asks_its_network_at_its_braking_pose(
+    student_env, trained_associator
+):
+    """With ``brake_ahead`` the student's network is asked at ``braking_pose`` of its last two
+    pose estimates, which lies ahead of a moving robot; without, at its pose; the run's setting
+    hands the agent the student robot's actuation limits."""
+    aria = hardware.Actuation(linear_accel_mps2=0.3, yaw_accel_degps2=100.0)
+    spec = student_env.action_spec()
+    agents = {
+        told: StudentAgent(
+            trained_associator,
+            "go",
+            StudentVision("truth", watch_teacher=False),
+            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+            spec,
+            brake_ahead=aria if told else None,
+        )
+        for told in (False, True)
+    }
+    for told, agent in agents.items():
+        student_env.task.set_start(student_pose=performance.FIG4_START)
+        timestep = student_env.reset()
+        agent.reset(timestep, performance.FIG4_START)
+        ahead, previous = [], None
+        for _ in range(30):
+            timestep = student_env.step(agent.step(timestep))
+            if not told:
+                assert agent.query_pose is agent.own_pose
+            elif previous is not None:
+                expected = performance.braking_pose(previous, agent.own_pose, 0.1, aria)
+                np.testing.assert_allclose(agent.query_pose, expected)
+                ahead.append(np.hypot(*np.subtract(expected[:2], agent.own_pose[:2])))
+            previous = agent.own_pose
+        if told:
+            assert max(ahead) > 0.02, ahead  # it drives: the query runs ahead of it
+    config = RunConfig().replace(
+        {"performance.brake_ahead": True, "perturbations.actuation.linear_accel_mps2": 0.3}
+    )
+    told = trials.make_agent(config, "student", "go", student_env, trained_associator, None)
+    assert told.brake_ahead == hardware.Actuation(linear_accel_mps2=0.3)
+    default = trials.make_agent(RunConfig(), "student", "go", student_env, trained_associator, None)
+    assert default.brake_ahead == hardware.Actuation()  # on by default; no limits: no look-ahead
+    off = RunConfig().replace({"performance.brake_ahead": False})
+    untold = trials.make_agent(off, "student", "go", student_env, trained_associator, None)
+    assert untold.brake_ahead is None
 
 
 def test_student_actions_with_the_overhead_camera_satisfy_the_spec(trained_associator):
@@ -481,6 +552,7 @@ def test_unknown_row_is_refused_by_name():
         ("learning.test_steps", 2.5),
         ("performance.trial_seconds", 4.0),
         ("performance.trial_seconds", float("nan")),
+        ("performance.brake_ahead", "yes"),
     ],
 )
 def test_bad_reproduce_settings_are_refused_by_name(field, value):

@@ -358,6 +358,20 @@ def test_reproduce_takes_the_realistic_preset():
     assert not reproduce_config(args).perturbations.active
 
 
+@pytest.mark.parametrize("flag, value", [(None, True), ("on", True), ("off", False)])
+def test_reproduce_takes_brake_ahead(flag, value):
+    """``--brake-ahead on|off`` sets ``performance.brake_ahead`` (a performing setting: the
+    networks are shared with runs without it), default the configuration's."""
+    from imitation.cli import build_parser
+
+    extra = [] if flag is None else ["--brake-ahead", flag]
+    args = build_parser().parse_args(["reproduce", "--quick", *extra])
+    assert reproduce_config(args).performance.brake_ahead is value
+    assert "performance" not in SHARED_LEARNING_SECTIONS
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["reproduce", "--brake-ahead", "yes"])
+
+
 def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed_calibration(
     tmp_path,
 ):
