@@ -17,6 +17,8 @@ from peoplebot_sim.viewpoints import VIEWS
 RENDERS = pathlib.Path("renders")
 #: The named perturbation level sets (``imitation.perturbations.PRESETS``).
 PERTURBATION_PRESETS = ("realistic",)
+#: Where the students' braking limits come from (``imitation.performance.BRAKE_LIMITS``).
+BRAKE_LIMITS = ("told", "estimated")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -96,6 +98,13 @@ BRAKE_AHEAD_HELP = (
     "performance.brake_ahead, on; no change on a robot without limits)"
 )
 
+BRAKE_LIMITS_HELP = (
+    "told: the students brake ahead at the student robot's acceleration limits "
+    "(perturbations.actuation); estimated: at the limits they identify from their robot's "
+    "response to their own commands during each trial, a robot of unknown limits (default: the "
+    "run's performance.brake_limits, told)"
+)
+
 #: Command-line options of ``reproduce`` and the config keys they set.
 REPRODUCE_OPTIONS = {
     "seed": "seed",
@@ -109,6 +118,7 @@ REPRODUCE_OPTIONS = {
     "trial_seconds": "performance.trial_seconds",
     "workers": "workers",
     "drive": "performance.drive",
+    "brake_limits": "performance.brake_limits",
 }
 
 
@@ -155,8 +165,12 @@ def _randomisation_suffix(chosen) -> str:
 
 
 def _brake_ahead_suffix(args) -> str:
-    """Returns the default folder's suffix for an explicit ``--brake-ahead``."""
-    return "" if args.brake_ahead is None else f"-brake-ahead-{args.brake_ahead}"
+    """Returns the default folder's suffix for an explicit ``--brake-ahead`` and
+    ``--brake-limits``."""
+    suffix = "" if args.brake_ahead is None else f"-brake-ahead-{args.brake_ahead}"
+    if args.brake_limits is not None:
+        suffix += f"-brake-limits-{args.brake_limits}"
+    return suffix
 
 
 def _cmd_reproduce(args) -> int:
@@ -216,6 +230,8 @@ def _cmd_transfer(args) -> int:
         changes["performance.trial_seconds"] = args.trial_seconds
     if args.brake_ahead is not None:
         changes["performance.brake_ahead"] = args.brake_ahead == "on"
+    if args.brake_limits is not None:
+        changes["performance.brake_limits"] = args.brake_limits
     sources = transfer_runs.expand_sources(args.reuse_from)
     if not sources:
         raise ValueError(f"--reuse-from {args.reuse_from[0]} is a sweep folder without run cells")
@@ -526,6 +542,7 @@ def build_parser() -> argparse.ArgumentParser:
         "strongest directive",
     )
     rep.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
+    rep.add_argument("--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP)
     rep.add_argument("--no-videos", action="store_true", help="skip the student videos")
     rep.add_argument(
         "--mcap",
@@ -636,6 +653,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="perturbations under every level (e.g. realistic); default none",
     )
     tra.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
+    tra.add_argument("--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP)
     tra.add_argument(
         "--combined",
         choices=(*PERTURBATION_PRESETS, "none"),

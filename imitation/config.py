@@ -22,7 +22,7 @@ from associator.network import Associator
 from imitation import storage
 from imitation.learning import MOTOR_SOURCES
 from imitation.observers import SELF_LOCALISATIONS, VISION_MODES
-from imitation.performance import DRIVE_MODES, SuccessConfig
+from imitation.performance import BRAKE_LIMITS, DRIVE_MODES, SuccessConfig
 from imitation.perturbations import PerturbationConfig
 from imitation.randomisation import RandomisationConfig
 from peoplebot_sim.task import TaskConfig
@@ -213,6 +213,10 @@ class PerformanceConfig:
         (``perturbations.actuation``, as the teacher's reference row is) and ask their network at
         the pose where braking now would bring them to rest (``performance.braking_pose``); no
         change on a robot without limits. On by default since version 0.9.0.
+      brake_limits: where the limits the students brake ahead at come from: 'told' (the
+        student robot's ``perturbations.actuation``) or 'estimated' (identified from the robot's
+        response to the student's own commands during each trial, ``imitation.limits``: a robot
+        of unknown limits).
     """
 
     trials: int = 50
@@ -220,10 +224,12 @@ class PerformanceConfig:
     drive: str = "graded"
     success: SuccessConfig = SuccessConfig()
     brake_ahead: bool = True
+    brake_limits: str = "told"
 
     def __post_init__(self):
         _check_count("performance.trials", self.trials)
         _check_choice("performance.drive", self.drive, DRIVE_MODES)
+        _check_choice("performance.brake_limits", self.brake_limits, BRAKE_LIMITS)
         if not isinstance(self.brake_ahead, bool):
             raise ValueError(
                 f"performance.brake_ahead must be true or false, got {self.brake_ahead!r}"

@@ -31,6 +31,7 @@ import numpy as np
 
 from associator import encoding
 from associator.network import Associator
+from imitation.limits import AccelerationLimitEstimator
 from imitation.observers import StudentVision, pose_or_nan
 from peoplebot_sim.entities import BASE_RADIUS_M
 from peoplebot_sim.hardware import Actuation, braking_travel
@@ -44,6 +45,8 @@ ROW_WORD = {"go": "go", "pick": "pick", "pick_other_wall": "pick", "lift": "lift
 POLICIES = ("student", "teacher", "student_hierarchical")
 #: How the student's motor area drives its wheels: the graded activations or the winning directive.
 DRIVE_MODES = ("graded", "directive")
+#: Where the limits a student brakes ahead at come from (``PerformanceConfig.brake_limits``).
+BRAKE_LIMITS = ("told", "estimated")
 #: The paper's Fig. 4 start: top middle of the arena, facing up (world x, y metres, yaw radians).
 FIG4_START = (0.0, 0.6, math.pi / 2)
 
@@ -89,6 +92,8 @@ class StudentAgent:
       brake_ahead: the acceleration limits of the robot it drives, if it is told them: it then
         asks the network at the pose where it would come to rest braking now from its measured
         speeds (``braking_pose``), as the teacher brakes ahead; None: at its pose.
+      limit_estimator: not told them, it brakes ahead at the limits this estimator identifies
+        from its commands and measured speeds (``imitation.limits``; ``brake_ahead`` then None).
     """
 
     def __init__(
@@ -102,14 +107,19 @@ class StudentAgent:
         graded: bool = False,
         arena: ArenaGeometry = ArenaGeometry(),
         brake_ahead: Actuation | None = None,
+        limit_estimator: AccelerationLimitEstimator | None = None,
     ):
+        if brake_ahead is not None and limit_estimator is not None:
+            raise ValueError(
+                "a student is told its limits (brake_ahead) or estimates them, not both"
+            )
         if word not in model.vocabulary:
             raise ValueError(
                 f"unknown word {word!r}; the network knows: {', '.join(model.vocabulary)}"
             )
         self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
         self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
-        self.brake_ahead = brake_ahead
+        self.brake_ahead, self.limit_estimator = brake_ahead, limit_estimator
         self.reset()
 
     def reset(self, timestep=None, start_pose=None) -> None:
@@ -119,18 +129,30 @@ class StudentAgent:
         self.directive, self.motor, self.own_pose = None, np.zeros(4), None
         self.own_covariance = None
         self.time_s = 0.0
-        self.query_pose, self._last_pose = None, None
+        self.query_pose, self._last_pose, self._last_command = None, None, (0.0, 0.0)
+        if self.limit_estimator is not None:
+            self.limit_estimator.reset()
 
     def command(self, own_pose, dt: float = 0.1) -> tuple[float, float]:
         """Returns ``(linear m/s, yaw rate rad/s)`` for an own-pose estimate (None: stand still);
         ``dt``: seconds since the previous estimate (for the measured speeds)."""
         last, self._last_pose = self._last_pose, own_pose
+        limits = self.brake_ahead
+        if self.limit_estimator is not None:
+            known = last is not None and own_pose is not None
+            speeds = measured_speeds(last, own_pose, dt) if known else None
+            self.limit_estimator.update(self._last_command, speeds)
+            limits = self.limit_estimator.limits
+        self._last_command = self._command(own_pose, last, dt, limits)
+        return self._last_command
+
+    def _command(self, own_pose, last, dt: float, limits: Actuation | None):
         if own_pose is None:
             self.directive, self.motor, self.query_pose = None, np.zeros(4), None
             return 0.0, 0.0
         self.query_pose = own_pose
-        if self.brake_ahead is not None and last is not None:
-            self.query_pose = braking_pose(last, own_pose, dt, self.brake_ahead)
+        if limits is not None and last is not None:
+            self.query_pose = braking_pose(last, own_pose, dt, limits)
         wall = world_to_wall(*self.query_pose, self.arena)
         vision = self.encoder.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True)
         result = self.model.perform(vision, self.word)
@@ -154,14 +176,21 @@ def braking_pose(previous, pose, dt: float, limits: Actuation) -> tuple[float, f
     ``limits`` from the speeds measured between ``previous`` and ``pose`` (each ``(x, y, yaw)``,
     world metres and radians, ``dt`` seconds apart): its heading turned on by the yaw rate's
     braking travel and its position moved by the forward speed's along the mean heading."""
-    x0, y0, yaw0 = (float(v) for v in previous)
     x, y, yaw = (float(v) for v in pose)
-    speed_mps = ((x - x0) * math.cos(yaw) + (y - y0) * math.sin(yaw)) / dt
-    yaw_rate_degps = wrap_degrees(math.degrees(yaw - yaw0)) / dt
+    speed_mps, yaw_rate_degps = measured_speeds(previous, pose, dt)
     turn = math.radians(braking_travel(yaw_rate_degps, limits.yaw_accel_degps2))
     travel = braking_travel(speed_mps, limits.linear_accel_mps2)
     heading = yaw + 0.5 * turn
     return x + travel * math.cos(heading), y + travel * math.sin(heading), yaw + turn
+
+
+def measured_speeds(previous, pose, dt: float) -> tuple[float, float]:
+    """Returns ``(forward speed m/s, yaw rate deg/s)`` between two poses ``(x, y, yaw)`` (world
+    metres and radians) ``dt`` seconds apart, the speed along the later heading."""
+    x0, y0, yaw0 = (float(v) for v in previous)
+    x, y, yaw = (float(v) for v in pose)
+    speed_mps = ((x - x0) * math.cos(yaw) + (y - y0) * math.sin(yaw)) / dt
+    return speed_mps, wrap_degrees(math.degrees(yaw - yaw0)) / dt
 
 
 def make_action(spec, drive_command, head_command=(0.0, 0.0)) -> np.ndarray:

@@ -12,6 +12,7 @@ import numpy as np
 from associator import encoding, persistence
 from imitation import performance, perturbations, storage
 from imitation.config import RunConfig
+from imitation.limits import AccelerationLimitEstimator
 from imitation.observers import Calibration
 from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
@@ -119,8 +120,18 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
         drive=config.drive,
         graded=config.performance.drive == "graded",
         arena=env.task.geometry,
-        brake_ahead=config.perturbations.actuation if config.performance.brake_ahead else None,
+        **_braking(config),
     )
+
+
+def _braking(config: RunConfig) -> dict:
+    """Returns the student agent's braking arguments: none, the limits it is told, or an
+    estimator of them (``performance.brake_ahead`` and ``brake_limits``)."""
+    if not config.performance.brake_ahead:
+        return {}
+    if config.performance.brake_limits == "estimated":
+        return {"limit_estimator": AccelerationLimitEstimator(config.task.control_timestep)}
+    return {"brake_ahead": config.perturbations.actuation}
 
 
 def reference_teacher_config(config: RunConfig):

@@ -143,6 +143,50 @@ def test_a_student_told_its_limits_asks_its_network_at_its_braking_pose(
     assert untold.brake_ahead is None
 
 
+def test_a_student_not_told_its_limits_identifies_them_and_brakes_ahead_at_them(
+    student_env, trained_associator
+):
+    """With a limit estimator the student, driving a robot with ARIA's limits it is not told,
+    identifies them from its own commands and measured speeds (within one step of the candidate
+    grid) and asks its network at ``braking_pose`` at the limits identified so far; the run's
+    setting hands the agent an estimator instead of the robot's limits."""
+    from imitation.limits import AccelerationLimitEstimator
+
+    config = RunConfig().replace(
+        {
+            "perturbations.actuation.linear_accel_mps2": 0.3,
+            "perturbations.actuation.yaw_accel_degps2": 100.0,
+            "performance.brake_limits": "estimated",
+        }
+    )
+    env = trials.student_environment(config)
+    agent = trials.make_agent(config, "student", "go", env, trained_associator, None)
+    assert agent.brake_ahead is None and agent.limit_estimator is not None
+    env.task.set_start(student_pose=performance.FIG4_START)
+    timestep = env.reset()
+    agent.reset(timestep, performance.FIG4_START)
+    previous, linear = None, []
+    for _ in range(40):
+        timestep = env.step(agent.step(timestep))
+        limits = agent.limit_estimator.limits
+        if previous is not None:
+            expected = performance.braking_pose(previous, agent.own_pose, 0.1, limits)
+            np.testing.assert_allclose(agent.query_pose, expected)
+        previous = agent.own_pose
+        linear.append(limits.linear_accel_mps2)
+    assert 0.3 / 1.2 < linear[-1] < 0.3 * 1.2, linear  # it drove: the forward limit is identified
+    with pytest.raises(ValueError, match="not both"):
+        StudentAgent(
+            trained_associator,
+            "go",
+            StudentVision("truth", watch_teacher=False),
+            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+            env.action_spec(),
+            brake_ahead=hardware.Actuation(),
+            limit_estimator=AccelerationLimitEstimator(0.1),
+        )
+
+
 def test_student_actions_with_the_overhead_camera_satisfy_the_spec(trained_associator):
     env = task.load(with_teacher=False, cameras=("overhead",), width=WIDTH, height=HEIGHT, seed=0)
     calibration = Calibration(env.physics, WIDTH, HEIGHT)
@@ -553,6 +597,7 @@ def test_unknown_row_is_refused_by_name():
         ("performance.trial_seconds", 4.0),
         ("performance.trial_seconds", float("nan")),
         ("performance.brake_ahead", "yes"),
+        ("performance.brake_limits", "guessed"),
     ],
 )
 def test_bad_reproduce_settings_are_refused_by_name(field, value):

@@ -372,6 +372,26 @@ def test_reproduce_takes_brake_ahead(flag, value):
         build_parser().parse_args(["reproduce", "--brake-ahead", "yes"])
 
 
+@pytest.mark.parametrize("command", ["reproduce", "transfer"])
+def test_brake_limits_option_sets_where_the_braking_limits_come_from(command):
+    """``--brake-limits told|estimated`` sets ``performance.brake_limits`` (default the
+    configuration's, told) and names the default output folder; its choices are the
+    configuration's."""
+    from imitation.cli import BRAKE_LIMITS, _brake_ahead_suffix, build_parser
+
+    assert BRAKE_LIMITS == performance.BRAKE_LIMITS
+    source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
+    args = build_parser().parse_args([command, *source, "--brake-limits", "estimated"])
+    assert args.brake_limits == "estimated"
+    assert _brake_ahead_suffix(args) == "-brake-limits-estimated"
+    if command == "reproduce":
+        assert reproduce_config(args).performance.brake_limits == "estimated"
+        default = reproduce_config(build_parser().parse_args(["reproduce"]))
+        assert default.performance.brake_limits == "told"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args([command, *source, "--brake-limits", "guessed"])
+
+
 def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed_calibration(
     tmp_path,
 ):
