@@ -12,13 +12,12 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL before anything imports mujo
 
 # isort: split
 from imitation.calibrate import DEFAULT_BOARD_SPEC
+from imitation.limits import BRAKE_LIMITS
 from peoplebot_sim.viewpoints import VIEWS
 
 RENDERS = pathlib.Path("renders")
 #: The named perturbation level sets (``imitation.perturbations.PRESETS``).
 PERTURBATION_PRESETS = ("realistic",)
-#: Where the students' braking limits come from (``imitation.performance.BRAKE_LIMITS``).
-BRAKE_LIMITS = ("told", "estimated")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -21,8 +21,9 @@ from associator.hierarchy import HierarchicalAssociator
 from associator.network import Associator
 from imitation import storage
 from imitation.learning import MOTOR_SOURCES
+from imitation.limits import BRAKE_LIMITS
 from imitation.observers import SELF_LOCALISATIONS, VISION_MODES
-from imitation.performance import BRAKE_LIMITS, DRIVE_MODES, SuccessConfig
+from imitation.performance import DRIVE_MODES, SuccessConfig
 from imitation.perturbations import PerturbationConfig
 from imitation.randomisation import RandomisationConfig
 from peoplebot_sim.task import TaskConfig

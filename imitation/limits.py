@@ -21,6 +21,10 @@ import numpy as np
 
 from peoplebot_sim.hardware import Actuation
 
+#: Where the limits a student brakes ahead at come from (``PerformanceConfig.brake_limits``):
+#: the robot's own (told) or this module's estimate.
+BRAKE_LIMITS = ("told", "estimated")
+
 
 def _candidates(low: float, high: float, count: int) -> tuple:
     """Returns "no limit" (0) then ``count`` limits spaced evenly in log from ``low`` to

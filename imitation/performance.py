@@ -45,8 +45,6 @@ ROW_WORD = {"go": "go", "pick": "pick", "pick_other_wall": "pick", "lift": "lift
 POLICIES = ("student", "teacher", "student_hierarchical")
 #: How the student's motor area drives its wheels: the graded activations or the winning directive.
 DRIVE_MODES = ("graded", "directive")
-#: Where the limits a student brakes ahead at come from (``PerformanceConfig.brake_limits``).
-BRAKE_LIMITS = ("told", "estimated")
 #: The paper's Fig. 4 start: top middle of the arena, facing up (world x, y metres, yaw radians).
 FIG4_START = (0.0, 0.6, math.pi / 2)
 
