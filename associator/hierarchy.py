@@ -365,6 +365,7 @@ class HierarchicalAssociator:
             return self
         for name in _WORD_STATISTICS:  # counted on the lower level as it was: now stale
             self.__dict__.pop(name, None)
+        self._statistics_changed()
         words = self._heard_words(z[:, encoding.LANGUAGE_SLICE])
         z[:, encoding.LANGUAGE_SLICE] = 0.0  # the lower level never hears language
         z[:, encoding.MOTOR_SLICE] *= self.motor_gain
@@ -438,6 +439,7 @@ class HierarchicalAssociator:
             self.word_motor_counts_ = np.zeros((n_words, n_components, N_MOTOR))
         if z.shape[0] == 0:
             return self
+        self._statistics_changed()
         vision, motor = z[:, encoding.VISION_SLICE], z[:, encoding.MOTOR_SLICE]
         component = self._lower_winners(vision, motor, 1.0) * bins + heading_sectors(vision, bins)
         cell = self._heard_words(z[:, encoding.LANGUAGE_SLICE]) * n_components + component
@@ -462,9 +464,36 @@ class HierarchicalAssociator:
         """Whether ``count_word_statistics`` has counted since the lower level last learned."""
         return hasattr(self, "word_samples_")
 
+    def _statistics_changed(self) -> None:
+        """Marks the word statistics as changed: what ``_derived`` kept is computed again."""
+        self.__dict__["_statistics_generation"] = self.__dict__.get("_statistics_generation", 0) + 1
+
+    def _derived(self, name: str, compute):
+        """Returns ``compute()`` (an array or a tuple of arrays, made read-only), computed once
+        per state of the word statistics and of the settings it may read: each perform step
+        asks for the same pose components and directive tables."""
+        state = (
+            self.__dict__.get("_statistics_generation", 0),
+            tuple(id(self.__dict__.get(statistic)) for statistic in _WORD_STATISTICS),
+            float(self.pose_width_floor),
+            int(self.min_word_samples),
+            int(self.pose_heading_bins),
+        )
+        cache = self.__dict__.setdefault("_derived_cache", {})
+        kept = cache.get(name)
+        if kept is None or kept[0] != state:
+            value = compute()
+            for array in value if isinstance(value, tuple) else (value,):
+                array.flags.writeable = False
+            cache[name] = kept = (state, value)
+        return kept[1]
+
     def _unit_statistics(self):
         """Returns the word statistics per word and lower unit (n_words, n_hidden, ...): samples,
         pose sums, pose squares and directive counts, summed over the heading sectors."""
+        return self._derived("unit_statistics", self._count_unit_statistics)
+
+    def _count_unit_statistics(self):
         bins = int(self.pose_heading_bins)
         n_words, n_hidden = len(self.vocabulary), self.lower_.n_hidden
         return tuple(
@@ -484,6 +513,11 @@ class HierarchicalAssociator:
         vision code (each spread at least ``pose_width_floor``, the heading's circular), and the
         log of each component's normaliser; components with fewer than ``min_word_samples``
         samples have a normaliser of -inf. Also returns the components' sample counts."""
+        return self._derived(
+            f"pose_components_{per_unit}", lambda: self._compute_pose_components(per_unit)
+        )
+
+    def _compute_pose_components(self, per_unit: bool):
         if per_unit:
             samples, sums, squares, _ = self._unit_statistics()
         else:
@@ -503,7 +537,8 @@ class HierarchicalAssociator:
         mean_phi = np.arctan2(mean[..., 3], mean[..., 2]) * to_units
         log_norm = -np.log(sd_xy[..., 0] * sd_xy[..., 1] * sd_phi)
         log_norm = np.where(samples >= self.min_word_samples, log_norm, -np.inf)
-        return mean[..., :2], sd_xy, mean_phi, sd_phi, log_norm, samples
+        # A copy of the counts: the returned arrays are kept read-only (``_derived``).
+        return mean[..., :2], sd_xy, mean_phi, sd_phi, log_norm, np.array(samples)
 
     def _pose_fit_at_winners(self, vision: np.ndarray, winners: np.ndarray) -> np.ndarray:
         """Returns (n, n_words): the Gaussian log-likelihood of each sample's pose under each
@@ -773,7 +808,7 @@ class HierarchicalAssociator:
                 sectors = self._pose_log_likelihoods(v, w, per_unit=False)
                 rows = np.flatnonzero(np.isfinite(sectors).any(axis=1))  # components to mix
                 posterior, motor[start + rows] = self._mix_directives(
-                    sectors[rows], w[rows], self.word_motor_counts_
+                    sectors[rows], w[rows], self._directive_table(per_unit=False)
                 )
                 # The most probable component's unit.
                 winners[start + rows] = posterior.argmax(axis=1) // int(self.pose_heading_bins)
@@ -795,16 +830,25 @@ class HierarchicalAssociator:
     def _mixture_motor(self, activation: np.ndarray, word_index: np.ndarray) -> np.ndarray:
         """Returns (n, 4): ``sum_k softmax(activation / perform_temperature)_k p(d | k, word)``
         over the word's counted components (the others, at -inf, weigh nothing)."""
-        counts = self._unit_statistics()[3]
-        return self._mix_directives(activation / self.perform_temperature, word_index, counts)[1]
+        table = self._directive_table(per_unit=True)
+        return self._mix_directives(activation / self.perform_temperature, word_index, table)[1]
 
-    def _mix_directives(self, log_weights: np.ndarray, word_index: np.ndarray, counts):
+    def _directive_table(self, per_unit: bool) -> np.ndarray:
+        """Returns ``p(d | k, word)`` (n_words, n_components, 4) from the directive counts of
+        each word's components: per lower unit, or per unit and heading sector (0 where none)."""
+
+        def compute():
+            counts = self._unit_statistics()[3] if per_unit else self.word_motor_counts_
+            return counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
+
+        return self._derived(f"directive_table_{per_unit}", compute)
+
+    def _mix_directives(self, log_weights: np.ndarray, word_index: np.ndarray, table):
         """Returns ``softmax(log_weights)`` (n, n_components; -inf weighs nothing) and the mixture
         (n, 4) of the components' directive distributions ``p(d | k, word)`` it weights, from
-        their directive ``counts`` (n_words, n_components, 4)."""
+        their ``table`` (n_words, n_components, 4; ``_directive_table``)."""
         weights = np.exp(log_weights - log_weights.max(axis=1, keepdims=True))
         weights /= weights.sum(axis=1, keepdims=True)
-        table = counts / np.maximum(counts.sum(axis=2, keepdims=True), 1.0)
         out = np.empty((len(log_weights), N_MOTOR))
         for word in np.unique(word_index):
             rows = word_index == word

@@ -792,3 +792,35 @@ def test_student_t_components_reweigh_the_posterior_read_out_only(learned, count
     for bad in (-1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="pose_tail_dof must be a finite number >= 0"):
             HierarchicalAssociator(pose_tail_dof=bad).validate_params()
+
+
+def test_perform_keeps_its_derived_tables_until_the_statistics_or_settings_change(counted):
+    """The pose components and directive tables a perform step reads are computed once (the
+    same read-only arrays each call) and again when the statistics are counted on or a setting
+    they read changes: the output is always that of a copy computing them afresh."""
+    model, _, (vision, language, motor, _) = counted
+    model = copy.deepcopy(model)
+
+    def afresh(network):
+        fresh = copy.deepcopy(network)
+        fresh.__dict__.pop("_derived_cache", None)
+        return fresh.perform_batch(vision[:400], "pick")
+
+    def same(a, b):
+        np.testing.assert_array_equal(a.motor, b.motor)
+        np.testing.assert_array_equal(a.winners, b.winners)
+
+    first = model.perform_batch(vision[:400], "pick")
+    components = model._pose_components(per_unit=False)
+    assert model._pose_components(per_unit=False) is components
+    assert not components[0].flags.writeable
+    same(model.perform_batch(vision[:400], "pick"), first)
+    model.count_word_statistics(vision[:3000], language[:3000], motor[:3000])
+    assert model._pose_components(per_unit=False) is not components
+    moved = model.perform_batch(vision[:400], "pick")
+    assert not np.array_equal(moved.motor, first.motor)
+    same(moved, afresh(model))
+    model.pose_width_floor = 3.0 * model.pose_width_floor
+    widened = model.perform_batch(vision[:400], "pick")
+    assert not np.array_equal(widened.motor, moved.motor)
+    same(widened, afresh(model))
