@@ -213,8 +213,10 @@ class StudentVision:
         own = self.localisation.pose
         out = {"student": None if own is None else own.copy(), "teacher": None}
         if self.watch_teacher and own is not None:
+            # The tilt as the landmarks correct it (``LocatorConfig.tilt_search_deg``).
+            tilt_seen = tilt + self.localiser.locator.tilt_correction_deg
             camera = head_camera(
-                self.calibration.head_intrinsics, own, pan, tilt, self.calibration.head_mount
+                self.calibration.head_intrinsics, own, pan, tilt_seen, self.calibration.head_mount
             )
             track = self.tracker.update(image, camera, time_s, found=found)["teacher"]
             if track.track.pose is not None:

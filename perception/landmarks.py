@@ -266,22 +266,38 @@ class LocatorConfig:
       min_markers: fewest landmarks a fix uses; 1 works from a prior pose, a start from nothing
         asks for :attr:`min_markers_global` (one small marker's flip is ambiguous).
       min_markers_global: fewest landmarks for a fix without a prior pose.
+      tilt_search_deg, tilt_step_deg, tilt_votes: the head's tilt zero offset is found from the
+        landmarks, not believed: on each of the first ``tilt_votes`` frames with at least
+        ``min_markers_global`` landmarks the tilt correction of least corner error is searched
+        within +- ``tilt_search_deg`` on a ``tilt_step_deg`` grid (ties to the smallest), and
+        every fit uses the median of those found (0: the tilt reading is believed). A tilt error
+        turns into a range error, because the landmarks hang near the camera's height
+        (docs/transfer.md, "The head camera with the realistic preset").
     """
 
     corner_sigma_px: float = 0.5
     max_rms_error_px: float = 2.0
     min_markers: int = 1
     min_markers_global: int = 2
+    tilt_search_deg: float = 3.0
+    tilt_step_deg: float = 0.1
+    tilt_votes: int = 20
 
     def __post_init__(self):
         if not (math.isfinite(self.corner_sigma_px) and self.corner_sigma_px > 0):
             raise ValueError(f"corner_sigma_px must be > 0 pixels, got {self.corner_sigma_px!r}")
         if not (math.isfinite(self.max_rms_error_px) and self.max_rms_error_px > 0):
             raise ValueError(f"max_rms_error_px must be > 0 pixels, got {self.max_rms_error_px!r}")
-        for name in ("min_markers", "min_markers_global"):
+        for name in ("min_markers", "min_markers_global", "tilt_votes"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if not (math.isfinite(self.tilt_search_deg) and 0 <= self.tilt_search_deg <= 10):
+            raise ValueError(
+                f"tilt_search_deg must be within [0, 10] degrees, got {self.tilt_search_deg!r}"
+            )
+        if not (math.isfinite(self.tilt_step_deg) and self.tilt_step_deg > 0):
+            raise ValueError(f"tilt_step_deg must be > 0 degrees, got {self.tilt_step_deg!r}")
 
 
 def invert_planar(pose) -> np.ndarray:
@@ -328,6 +344,12 @@ class LandmarkLocator:
         self.config = config
         self.detector = MarkerDetector(detector_config)
         self._corners = {m.marker_id: m.corners_world() for m in landmark_map.markers}
+        steps = int(round(config.tilt_search_deg / config.tilt_step_deg))
+        grid = np.arange(-steps, steps + 1) * config.tilt_step_deg
+        self._tilt_grid = grid[np.argsort(np.abs(grid), kind="stable")]  # the smallest first
+        #: The correction added to the tilt readings (degrees): the median of ``tilt_votes``.
+        self.tilt_correction_deg = 0.0
+        self.tilt_votes: list[float] = []
 
     def detect(self, image) -> list[tuple[int, np.ndarray]]:
         """Returns ``(marker_id, corners_px (4, 2))`` of each map marker found once in ``image``
@@ -383,32 +405,21 @@ class LandmarkLocator:
             )
         if len(found) < needed:
             return None
-        camera = self.robot_camera(pan_deg, tilt_deg)
-        world = np.concatenate([self._corners[i] for i, _ in found])
-        observed = np.concatenate([c for _, c in found])
         if prior is not None:
-            starts = [invert_planar(check_planar_pose(prior, "prior"))]
-        else:
-            starts = self._ippe_starts(found, camera)
-        best = None
-        for start in starts:
-            try:
-                params, residuals, jacobian = fit_planar_pose(start, world, observed, camera)
-            except ValueError:  # the start puts a corner behind the camera
-                continue
-            cost = float(residuals @ residuals)
-            if np.isfinite(cost) and (best is None or cost < best[0]):
-                best = (cost, params, jacobian)
+            prior = check_planar_pose(prior, "prior")
+        tilt_deg = tilt_deg + self._tilt_correction(found, pan_deg, tilt_deg, prior)
+        best = self._best_fit(found, pan_deg, tilt_deg, prior)
         if best is None:
             return None
         cost, inverse, jacobian = best
-        rms = math.sqrt(cost / len(observed))
+        n_corners = 4 * len(found)
+        rms = math.sqrt(cost / n_corners)
         if rms > self.config.max_rms_error_px:
             return None
         # Per-axis corner noise: the configured one, unless the residuals' own estimate (2N values,
         # 3 parameters fitted) says the corners are clearly noisier (a model error).
         sigma = self.config.corner_sigma_px
-        residual_sigma = math.sqrt(cost / max(2 * len(observed) - 3, 1))
+        residual_sigma = math.sqrt(cost / max(2 * n_corners - 3, 1))
         if residual_sigma > 1.5 * sigma:
             sigma = residual_sigma
         try:
@@ -423,6 +434,45 @@ class LandmarkLocator:
             tuple(i for i, _ in found),
             rms,
         )
+
+    def _best_fit(self, found, pan_deg: float, tilt_deg: float, prior):
+        """Returns ``(cost px^2, inverse pose, jacobian)`` of the least-cost fit to the corners
+        from the prior (or from every IPPE start), or None when no start gives one."""
+        camera = self.robot_camera(pan_deg, tilt_deg)
+        world = np.concatenate([self._corners[i] for i, _ in found])
+        observed = np.concatenate([c for _, c in found])
+        if prior is not None:
+            starts = [invert_planar(prior)]
+        else:
+            starts = self._ippe_starts(found, camera)
+        best = None
+        for start in starts:
+            try:
+                params, residuals, jacobian = fit_planar_pose(start, world, observed, camera)
+            except ValueError:  # the start puts a corner behind the camera
+                continue
+            cost = float(residuals @ residuals)
+            if np.isfinite(cost) and (best is None or cost < best[0]):
+                best = (cost, params, jacobian)
+        return best
+
+    def _tilt_correction(self, found, pan_deg: float, tilt_deg: float, prior) -> float:
+        """Returns the correction (degrees) the fits add to the tilt reading, after voting with
+        this frame when it is one of the first ``tilt_votes`` with enough landmarks."""
+        config = self.config
+        if (
+            config.tilt_search_deg > 0
+            and len(found) >= config.min_markers_global
+            and len(self.tilt_votes) < config.tilt_votes
+        ):
+            costs = []
+            for correction in self._tilt_grid:
+                fit = self._best_fit(found, pan_deg, tilt_deg + correction, prior)
+                costs.append(math.inf if fit is None else fit[0])
+            if math.isfinite(min(costs)):
+                self.tilt_votes.append(float(self._tilt_grid[int(np.argmin(costs))]))
+                self.tilt_correction_deg = float(np.median(self.tilt_votes))
+        return self.tilt_correction_deg
 
     def _ippe_starts(self, found, camera: PinholeCamera) -> list[np.ndarray]:
         """Returns inverse-pose starts from the two largest markers' IPPE solutions."""

@@ -182,6 +182,38 @@ def test_fix_from_constructed_corners_is_within_its_covariance(landmark_map):
     assert lo < np.mean(nees) < hi, np.mean(nees)
 
 
+def test_the_tilt_offset_is_found_from_the_landmarks(landmark_map):
+    """A head whose tilt reads 0.8 deg above the truth (a pan-tilt zero offset): believed, the
+    fits from two or more landmarks miss the corners by more than the 2 px gate or lie far off;
+    searched, the correction found is within 0.2 deg of the offset and every fix within 5 cm.
+    With a true reading the correction stays 0 and nothing changes."""
+    rng = np.random.default_rng(3)
+    views = []
+    while len(views) < 12:
+        truth = random_free_pose(rng)
+        for pan in rng.permutation(np.arange(-90, 91, 15)):
+            found = observe(landmark_map, truth, pan, rng, tilt_deg=TILT_DEG)
+            if len(found) >= 2:
+                views.append((truth, pan, found))
+                break
+    believed = LandmarkLocator(landmark_map, INTRINSICS, config=LocatorConfig(tilt_search_deg=0.0))
+    searched = LandmarkLocator(landmark_map, INTRINSICS)
+    honest = LandmarkLocator(landmark_map, INTRINSICS)
+    far = []
+    for truth, pan, found in views:
+        fix = believed.locate(found, pan, TILT_DEG + 0.8)
+        far.append(fix is None or pose_error(fix.pose, truth)[0] > 0.05)
+        fix = searched.locate(found, pan, TILT_DEG + 0.8)
+        assert fix is not None and pose_error(fix.pose, truth)[0] < 0.05, (truth, pan)
+        assert honest.locate(found, pan, TILT_DEG) is not None
+    assert np.mean(far) > 0.5
+    assert len(searched.tilt_votes) == 12
+    assert searched.tilt_correction_deg == pytest.approx(-0.8, abs=0.2)
+    assert honest.tilt_correction_deg == pytest.approx(0.0, abs=0.1)
+    with pytest.raises(ValueError, match="tilt_search_deg"):
+        LocatorConfig(tilt_search_deg=-1.0)
+
+
 def test_invert_planar_round_trips():
     pose = np.array([0.7, -1.2, 2.5])
     assert np.allclose(invert_planar(invert_planar(pose)), pose)
