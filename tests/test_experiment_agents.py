@@ -236,8 +236,10 @@ def test_student_actions_with_the_head_camera_satisfy_the_spec(student_env, trai
 
 def test_student_performing_by_landmarks_finds_itself_and_looks_at_them(trained_associator):
     """Head mode performing alone by landmarks (the default), from a start it is not told: it
-    finds itself within 3 s, then stays within 3 cm and 2 deg of the truth, and the head moves
-    (it looks at the landmarks); every action satisfies the spec."""
+    finds itself within 3 s, within 8 cm and 2 deg while its first frames vote on the head's tilt
+    offset (``LocatorConfig.tilt_search_deg``; the camera here is exact), within 1 cm from its
+    tenth fix on, and the head moves (it looks at the landmarks); every action satisfies the
+    spec."""
     env = task.load(with_teacher=False, seed=0, cameras=("head",), width=WIDTH, height=HEIGHT)
     vision = StudentVision("head", Calibration(env.physics, WIDTH, HEIGHT), watch_teacher=False)
     agent = StudentAgent(
@@ -266,7 +268,8 @@ def test_student_performing_by_landmarks_finds_itself_and_looks_at_them(trained_
     env.close()
     errors = np.array(errors)
     assert len(errors) >= 10
-    assert errors[:, 0].max() < 0.03 and errors[:, 1].max() < 2.0, errors
+    assert errors[:, 0].max() < 0.08 and errors[:, 1].max() < 2.0, errors
+    assert errors[10:, 0].max() < 0.01, errors
     assert np.any(np.array(heads) != 0)
 
 
