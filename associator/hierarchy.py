@@ -465,28 +465,26 @@ class HierarchicalAssociator:
         return hasattr(self, "word_samples_")
 
     def _statistics_changed(self) -> None:
-        """Marks the word statistics as changed: what ``_derived`` kept is computed again."""
-        self.__dict__["_statistics_generation"] = self.__dict__.get("_statistics_generation", 0) + 1
+        """Forgets what ``_derived`` kept: the word statistics are about to change."""
+        self.__dict__.pop("_derived_cache", None)
 
     def _derived(self, name: str, compute):
         """Returns ``compute()`` (an array or a tuple of arrays, made read-only), computed once
-        per state of the word statistics and of the settings it may read: each perform step
-        asks for the same pose components and directive tables."""
-        state = (
-            self.__dict__.get("_statistics_generation", 0),
-            tuple(id(self.__dict__.get(statistic)) for statistic in _WORD_STATISTICS),
+        until the word statistics change (``_statistics_changed``) or a setting it reads does:
+        each perform step asks for the same pose components and directive tables."""
+        settings = (
             float(self.pose_width_floor),
             int(self.min_word_samples),
             int(self.pose_heading_bins),
         )
         cache = self.__dict__.setdefault("_derived_cache", {})
         kept = cache.get(name)
-        if kept is None or kept[0] != state:
-            value = compute()
-            for array in value if isinstance(value, tuple) else (value,):
-                array.flags.writeable = False
-            cache[name] = kept = (state, value)
-        return kept[1]
+        if kept is None or kept[0] != settings:
+            cache[name] = kept = (settings, compute())
+        value = kept[1]
+        for array in value if isinstance(value, tuple) else (value,):
+            array.flags.writeable = False  # also on a copy's (a deep copy makes them writeable)
+        return value
 
     def _unit_statistics(self):
         """Returns the word statistics per word and lower unit (n_words, n_hidden, ...): samples,
