@@ -340,10 +340,7 @@ def _rotation(axis: np.ndarray, angle_rad: float) -> np.ndarray:
 def _scaled_focal(camera, fraction: float):
     if not fraction:
         return camera
-    matrix = np.array(camera.matrix, dtype=float)
-    matrix[0, 0] *= 1.0 + fraction
-    matrix[1, 1] *= 1.0 + fraction
-    return dataclasses.replace(camera, matrix=matrix)
+    return camera.with_focal_scale(1.0 + fraction)
 
 
 # ----------------------------------------------------------------------------- poses

@@ -189,6 +189,15 @@ class PinholeCamera:
         object.__setattr__(moved, "position_world", _readonly(position))
         return moved
 
+    def with_focal_scale(self, scale: float) -> PinholeCamera:
+        """Returns the same camera with both focal lengths (fx, fy, and the skew) times ``scale``;
+        the principal point, distortion and pose kept."""
+        if not (np.isfinite(scale) and scale > 0):
+            raise ValueError(f"focal scale must be a finite number > 0, got {scale!r}")
+        matrix = np.array(self.matrix, dtype=float)
+        matrix[:2, :2] *= scale
+        return dataclasses.replace(self, matrix=matrix)
+
     @property
     def width(self) -> int:
         """Returns the image width in pixels."""

@@ -33,6 +33,20 @@ def test_overhead_camera_sees_north_at_top_and_centre_in_middle():
     assert east[0] > centre[0] and abs(east[1] - centre[1]) < 1e-9
 
 
+def test_focal_scale_scales_image_offsets_and_keeps_the_rest():
+    camera = _overhead()
+    scaled = camera.with_focal_scale(1.02)
+    points = [[0.3, -0.2, 0.0], [1.1, 0.7, 0.5]]
+    centre = np.array([159.5, 119.5])
+    np.testing.assert_allclose(
+        scaled.project(points) - centre, 1.02 * (camera.project(points) - centre)
+    )
+    np.testing.assert_array_equal(scaled.position_world, camera.position_world)
+    assert camera.matrix[0, 0] == pytest.approx(scaled.matrix[0, 0] / 1.02)  # the original kept
+    with pytest.raises(ValueError, match="focal scale must be a finite number > 0, got 0"):
+        camera.with_focal_scale(0)
+
+
 def test_project_and_ray_round_trip():
     rng = np.random.default_rng(0)
     camera = PinholeCamera(
