@@ -13,6 +13,7 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL before anything imports mujo
 # isort: split
 from imitation.calibrate import DEFAULT_BOARD_SPEC
 from imitation.limits import BRAKE_LIMITS
+from imitation.observers import OVERHEAD_REGISTRATIONS
 from peoplebot_sim.viewpoints import VIEWS
 
 RENDERS = pathlib.Path("renders")
@@ -104,6 +105,13 @@ BRAKE_LIMITS_HELP = (
     "run's performance.brake_limits, told)"
 )
 
+OVERHEAD_REGISTRATION_HELP = (
+    "the overhead mode's camera pose: believed, as calibrated (with the preset's calibration "
+    "error), or floor_markers, fitted once to the camera's photo of the floor markers "
+    "(models/arena/floor_markers.toml) with the intrinsics as believed (default: the run's "
+    "vision.overhead_registration, believed)"
+)
+
 #: Command-line options of ``reproduce`` and the config keys they set.
 REPRODUCE_OPTIONS = {
     "seed": "seed",
@@ -118,6 +126,7 @@ REPRODUCE_OPTIONS = {
     "workers": "workers",
     "drive": "performance.drive",
     "brake_limits": "performance.brake_limits",
+    "overhead_registration": "vision.overhead_registration",
 }
 
 
@@ -169,6 +178,8 @@ def _brake_ahead_suffix(args) -> str:
     suffix = "" if args.brake_ahead is None else f"-brake-ahead-{args.brake_ahead}"
     if args.brake_limits is not None:
         suffix += f"-brake-limits-{args.brake_limits}"
+    if args.overhead_registration is not None:
+        suffix += f"-overhead-{args.overhead_registration.replace('_', '-')}"
     return suffix
 
 
@@ -231,6 +242,8 @@ def _cmd_transfer(args) -> int:
         changes["performance.brake_ahead"] = args.brake_ahead == "on"
     if args.brake_limits is not None:
         changes["performance.brake_limits"] = args.brake_limits
+    if args.overhead_registration is not None:
+        changes["vision.overhead_registration"] = args.overhead_registration
     sources = transfer_runs.expand_sources(args.reuse_from)
     if not sources:
         raise ValueError(f"--reuse-from {args.reuse_from[0]} is a sweep folder without run cells")
@@ -542,6 +555,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rep.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
     rep.add_argument("--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP)
+    rep.add_argument(
+        "--overhead-registration",
+        choices=OVERHEAD_REGISTRATIONS,
+        default=None,
+        help=OVERHEAD_REGISTRATION_HELP,
+    )
     rep.add_argument("--no-videos", action="store_true", help="skip the student videos")
     rep.add_argument(
         "--mcap",
@@ -653,6 +672,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     tra.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
     tra.add_argument("--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP)
+    tra.add_argument(
+        "--overhead-registration",
+        choices=OVERHEAD_REGISTRATIONS,
+        default=None,
+        help=OVERHEAD_REGISTRATION_HELP,
+    )
     tra.add_argument(
         "--combined",
         choices=(*PERTURBATION_PRESETS, "none"),

@@ -22,7 +22,7 @@ from associator.network import Associator
 from imitation import storage
 from imitation.learning import MOTOR_SOURCES
 from imitation.limits import BRAKE_LIMITS
-from imitation.observers import SELF_LOCALISATIONS, VISION_MODES
+from imitation.observers import OVERHEAD_REGISTRATIONS, SELF_LOCALISATIONS, VISION_MODES
 from imitation.performance import DRIVE_MODES, SuccessConfig
 from imitation.perturbations import PerturbationConfig
 from imitation.randomisation import RandomisationConfig
@@ -185,6 +185,10 @@ class VisionConfig:
       self_localisation: how the head mode knows the student's own pose: 'landmarks' (wheel
         odometry fused with the wall landmarks, from an unknown start) or 'odometry' (wheel
         odometry alone from the known start, for comparison).
+      overhead_registration: where the overhead mode's camera pose comes from: 'believed' (its
+        calibration as measured, with ``perturbations.calibration``'s error) or 'floor_markers'
+        (fitted once to the camera's photo of the floor markers, its intrinsics as believed;
+        ``observers.register_overhead``).
     """
 
     mode: str = "truth"
@@ -192,10 +196,14 @@ class VisionConfig:
     width: int = 320
     height: int = 240
     self_localisation: str = "landmarks"
+    overhead_registration: str = "believed"
 
     def __post_init__(self):
         _check_choice("vision.mode", self.mode, VISION_MODES)
         _check_choice("vision.self_localisation", self.self_localisation, SELF_LOCALISATIONS)
+        _check_choice(
+            "vision.overhead_registration", self.overhead_registration, OVERHEAD_REGISTRATIONS
+        )
         _check_count("vision.test_steps", self.test_steps)
         _check_pixels("vision", self.width, self.height)
 

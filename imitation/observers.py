@@ -9,6 +9,9 @@
   the landmarks (``perception.gaze``); 'odometry': wheel odometry alone from the known start, a
   pan-tilt controller keeping the teacher in view (the comparison).
 
+The overhead camera's pose is either believed as calibrated or registered once from the floor
+markers' photo (``OVERHEAD_REGISTRATIONS``, :func:`register_overhead`).
+
 ``StudentVision`` reads only the environment's observations (camera frames, wheel encoders, head
 angles; the simulator's poses in ``truth`` mode) and camera calibrations, as a real robot would.
 Poses are world ``(x_m, y_m, yaw_rad)``, or None when the robot is not known (never seen, or its
@@ -17,23 +20,29 @@ track was lost).
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
 
-from peoplebot_sim import assets, cameras
+from peoplebot_sim import assets, cameras, registration
 from peoplebot_sim.entities import BASE_RADIUS_M
 from perception.arenafile import read_arena
 from perception.gaze import GazeController
 from perception.landmarks import LandmarkLocator, read_landmark_map
 from perception.localisation import LocalisationEstimate, LocaliserConfig, SelfLocaliser
+from perception.markers import MarkerDetector
 from perception.odometry import WheelOdometry
 from perception.pantilt import HeadMount, PanTiltController, head_camera
 from perception.pipeline import Tracker
+from perception.registration import register_camera
 
 VISION_MODES = ("truth", "overhead", "head")
 #: How the head mode knows the student's own pose.
 SELF_LOCALISATIONS = ("landmarks", "odometry")
+#: Where the overhead camera's pose comes from: 'believed' (its calibration, as measured on the
+#: mount) or 'floor_markers' (fitted to a photo of the floor markers, ``register_overhead``).
+OVERHEAD_REGISTRATIONS = ("believed", "floor_markers")
 #: The closest the PeopleBot's centre of rotation comes to a wall, metres: half its 0.425 m width
 #: (ARIA's ``RobotWidth 425``, ``peoplebot_sim.entities``), rounded down; it bounds the landmark
 #: filter's estimate.
@@ -75,6 +84,17 @@ class Calibration:
         self.head_angle_offsets_deg = (0.0, 0.0)
         self.landmarks = read_landmark_map(assets.LANDMARKS_TOML)
         self.arena = read_arena(assets.ARENA_TOML).arena
+
+
+def register_overhead(calibration: Calibration) -> Calibration:
+    """Returns ``calibration`` with the overhead camera's pose fitted to the overhead camera's
+    photo of the floor markers (``peoplebot_sim.registration``), its intrinsics as believed."""
+    width, height = calibration.overhead.image_size
+    found = MarkerDetector().detect_all_corners(registration.registration_frame(width, height))
+    fitted = register_camera(calibration.overhead, found, registration.floor_markers())
+    registered = copy.copy(calibration)
+    registered.overhead = fitted.camera
+    return registered
 
 
 class StudentVision:

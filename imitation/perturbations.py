@@ -28,7 +28,12 @@ import math
 
 import numpy as np
 
-from imitation.observers import Calibration, StudentVision
+from imitation.observers import (
+    OVERHEAD_REGISTRATIONS,
+    Calibration,
+    StudentVision,
+    register_overhead,
+)
 from peoplebot_sim.appearance import Appearance
 from peoplebot_sim.hardware import Actuation, Body
 from perception.degrade import ImageDegradation
@@ -485,14 +490,23 @@ def student_vision(
     seed,
     watch_teacher: bool = True,
     self_localisation: str = "landmarks",
+    overhead_registration: str = "believed",
 ):
     """Returns the student's vision in ``mode`` (the head mode's own pose by
-    ``self_localisation``) with the calibration it believes and the vision perturbations; the
-    plain ``StudentVision`` on the given calibration when they are off."""
+    ``self_localisation``) with the calibration it believes (the overhead camera registered from
+    the floor markers with ``overhead_registration`` 'floor_markers') and the vision
+    perturbations; the plain ``StudentVision`` on the given calibration when they are off."""
+    if overhead_registration not in OVERHEAD_REGISTRATIONS:
+        raise ValueError(
+            f"unknown overhead registration {overhead_registration!r}; allowed: "
+            f"{', '.join(OVERHEAD_REGISTRATIONS)}"
+        )
     if calibration is not None:
         calibration = believed_calibration(
             calibration, perturbations.calibration, rng_for(seed_of(seed), "calibration")
         )
+        if mode == "overhead" and overhead_registration == "floor_markers":
+            calibration = register_overhead(calibration)
     vision = StudentVision(
         mode, calibration, watch_teacher=watch_teacher, self_localisation=self_localisation
     )

@@ -113,12 +113,14 @@ def watch_with_vision(
     task: TaskConfig = TaskConfig(),
     perturbations: PerturbationConfig = PerturbationConfig(),
     self_localisation: str = "landmarks",
+    overhead_registration: str = "believed",
 ) -> ObservedStream:
     """Runs the environment (``task``, with the teacher) with the teacher looping and the student
     watching through its camera (``vision_mode`` 'overhead' or 'head', frames of ``width`` x
     ``height`` pixels; the head mode's own pose by ``self_localisation``, see
-    ``observers.StudentVision``) as ``perturbations`` make it see (their randomness keyed by
-    ``seed``); returns what it saw beside the truth."""
+    ``observers.StudentVision``; the overhead camera's pose by ``overhead_registration``) as
+    ``perturbations`` make it see (their randomness keyed by ``seed``); returns what it saw
+    beside the truth."""
     if vision_mode not in ("overhead", "head"):
         raise ValueError(f"vision_mode must be 'overhead' or 'head', got {vision_mode!r}")
     if n_steps <= 0:
@@ -135,6 +137,7 @@ def watch_with_vision(
         env.task.control_timestep,
         seed,
         self_localisation=self_localisation,
+        overhead_registration=overhead_registration,
     )
     start = np.asarray(timestep.observation["student_pose"])
     vision.reset(start, timestep.observation["student_wheel_angles"])

@@ -200,6 +200,7 @@ def stage_recognition(config: RunConfig, folder: pathlib.Path, model, encoder) -
             task=config.world_config(),
             perturbations=config.perturbations,
             self_localisation=config.vision.self_localisation,
+            overhead_registration=config.vision.overhead_registration,
         )
     if observed is not None:
 

@@ -110,6 +110,7 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
         [config.seed] if rng is None else rng,
         watch_teacher=False,
         self_localisation=config.vision.self_localisation,
+        overhead_registration=config.vision.overhead_registration,
     )
     return performance.StudentAgent(
         model,

@@ -27,6 +27,8 @@ OBJECT_XML = MODELS_DIR / "arena" / "object.xml"
 ARENA_TOML = MODELS_DIR / "arena" / "arena.toml"
 #: The simulated arena's wall landmarks (``perception.landmarks.read_landmark_map``).
 LANDMARKS_TOML = MODELS_DIR / "arena" / "landmarks.toml"
+#: The overhead camera's registration layout, floor markers (``perception.registration``).
+FLOOR_MARKERS_TOML = MODELS_DIR / "arena" / "floor_markers.toml"
 
 #: Texture pixels per marker cell (a 4x4 marker with its border has 6 cells a side).
 _PIXELS_PER_CELL = 20

@@ -601,6 +601,7 @@ def test_unknown_row_is_refused_by_name():
         ("performance.trial_seconds", float("nan")),
         ("performance.brake_ahead", "yes"),
         ("performance.brake_limits", "guessed"),
+        ("vision.overhead_registration", "tape"),
     ],
 )
 def test_bad_reproduce_settings_are_refused_by_name(field, value):
