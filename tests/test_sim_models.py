@@ -303,6 +303,22 @@ def test_landmark_check_fails_when_the_map_and_the_plates_differ():
     assert any(f"landmark_{rest[-1].marker_id}: no such geom" in p for p in problems), problems
 
 
+def test_floor_markers_lie_where_their_file_says_and_the_overhead_camera_sees_them_all():
+    """The registration photo's scene carries the wall landmarks and the floor markers as the files
+    say (ids apart), and the overhead camera finds all nine floor markers in it."""
+    from peoplebot_sim import registration
+    from perception.markers import MarkerDetector
+
+    walls = landmarks.read_landmark_map(assets.LANDMARKS_TOML)
+    floor = registration.floor_markers()
+    assert not set(walls.ids) & set(floor.ids)
+    both = landmarks.LandmarkMap(walls.markers + floor.markers, quiet_zone_m=walls.quiet_zone_m)
+    physics = mjcf.Physics.from_mjcf_model(entities.Arena(landmarks=both).mjcf_model)
+    assert landmark_mismatches(physics.model, both) == []
+    found = MarkerDetector().detect_all_corners(registration.registration_frame(320, 240))
+    assert sorted(i for i, _ in found if i in floor) == list(floor.ids)
+
+
 # ------------------------------------------------------------------------------------------ drive
 def _drive(ctrl_forward: float, ctrl_turn: float, seconds: float = 2.5, window_s: float = 1.0):
     """Drives the lone student from rest (west of the centre, facing +x) with constant servo
