@@ -308,6 +308,8 @@ def _recognition(config: RunConfig, source: pathlib.Path) -> dict:
             progress=False,
             task=config.world_config(),
             perturbations=config.perturbations,
+            self_localisation=config.vision.self_localisation,
+            overhead_registration=config.vision.overhead_registration,
         )
     encoder = encoding.VisionEncoder(half_side_m=ArenaGeometry().half_side_m)
     models = {"paper": persistence.load(source / "network.npz")}
