@@ -203,6 +203,32 @@ def test_the_report_counts_the_recognition_steps_that_were_watched(trained_run):
     assert transfer._recognition_steps(overhead, trained_run) == 5000
 
 
+def test_a_camera_cell_watches_as_its_run_is_configured(monkeypatch, tmp_path):
+    """A camera-mode cell's recognition watches with the run's own pose source and overhead
+    camera registration, not the defaults."""
+    seen = {}
+
+    class Watched(Exception):
+        pass
+
+    def watch(*args, **kwargs):
+        seen.update(kwargs)
+        raise Watched
+
+    monkeypatch.setattr(transfer.recognition, "watch_with_vision", watch)
+    config = RunConfig.quick().replace(
+        {
+            "vision.mode": "overhead",
+            "vision.self_localisation": "odometry",
+            "vision.overhead_registration": "floor_markers",
+        }
+    )
+    with pytest.raises(Watched):
+        transfer._recognition(config, tmp_path)
+    assert seen["self_localisation"] == "odometry"
+    assert seen["overhead_registration"] == "floor_markers"
+
+
 def test_transfer_refuses_a_folder_that_is_not_a_finished_run(tmp_path, capsys):
     assert main(["transfer", "--reuse-from", str(tmp_path), "--out", str(tmp_path / "t")]) == 2
     assert "is not a run folder" in capsys.readouterr().err
