@@ -330,6 +330,16 @@ def _cmd_calibrate(args) -> int:
     return 0
 
 
+def _cmd_register(args) -> int:
+    from imitation import register
+
+    summary = register.run(
+        args.photo, args.camera_info, args.markers, args.arena, args.out, args.min_markers
+    )
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
 def _cmd_markers(args) -> int:
     from imitation import printables
 
@@ -830,6 +840,38 @@ def build_parser() -> argparse.ArgumentParser:
         "--min-corners", type=_positive_int, default=6, help="least board corners in a photo"
     )
     cal.set_defaults(func=_cmd_calibrate)
+
+    reg = sub.add_parser(
+        "register",
+        help="a fixed camera's pose from its photo of floor markers, into an arena file",
+        **defaults,
+    )
+    reg.add_argument("photo", type=pathlib.Path, help="the camera's photo of the floor markers")
+    reg.add_argument(
+        "--camera-info",
+        type=pathlib.Path,
+        required=True,
+        help="its intrinsics (peoplebot calibrate)",
+    )
+    reg.add_argument(
+        "--markers",
+        type=pathlib.Path,
+        required=True,
+        help="where the markers lie, a landmark map file (like models/arena/floor_markers.toml)",
+    )
+    reg.add_argument(
+        "--arena",
+        type=pathlib.Path,
+        required=True,
+        help="the room's arena file (its camera replaced)",
+    )
+    reg.add_argument(
+        "--out", type=pathlib.Path, required=True, help="the arena file written, with the camera"
+    )
+    reg.add_argument(
+        "--min-markers", type=_positive_int, default=4, help="fewest markers to fit to (4)"
+    )
+    reg.set_defaults(func=_cmd_register)
 
     markers = sub.add_parser(
         "markers",
