@@ -9,6 +9,7 @@ import math
 import pathlib
 import time
 
+import cv2
 import imageio.v2 as imageio
 import numpy as np
 from tqdm import tqdm
@@ -19,7 +20,7 @@ from imitation.overlay import annotate, inset
 from imitation.performance import dock_pose_at
 from imitation.rosbag import EpisodeRecorder
 from imitation.videos import BODY_ONLY_NOTE, DOCKING_RANGE_M
-from peoplebot_sim import cameras, directives
+from peoplebot_sim import cameras, directives, registration
 from peoplebot_sim.rendering import FrameRenderer
 from peoplebot_sim.task import TaskConfig, load
 from peoplebot_sim.viewpoints import VIEWS, FollowCamera, table_closeup
@@ -238,7 +239,8 @@ def _truth_row(frame: int, time_s: float, observation, word: str, directive: str
 def _write_recording(env, config: DemoConfig, video_path: pathlib.Path, truth, dt) -> dict:
     """Beside an overhead recording, writes what a real one would come with, so that ``peoplebot
     watch`` can take it: the camera's ``camera_info`` YAML, the arena file with the camera's pose
-    (under a preset, the calibration its student would believe), and the true poses per frame
+    (under a preset, the calibration its student would believe), the camera's photo of the floor
+    markers (``<name>.floor.png``, for ``peoplebot register``) and the true poses per frame
     (``<name>.truth.csv``); returns their paths."""
     camera = cameras.camera_model(env.physics, "overhead", config.width, config.height)
     if config.preset:
@@ -250,8 +252,12 @@ def _write_recording(env, config: DemoConfig, video_path: pathlib.Path, truth, d
     paths = {
         "camera_info": stem.with_name(f"{stem.name}.camera_info.yaml"),
         "arena": stem.with_name(f"{stem.name}.arena.toml"),
+        "floor_photo": stem.with_name(f"{stem.name}.floor.png"),
         "truth": stem.with_name(f"{stem.name}.truth.csv"),
     }
+    photo = registration.registration_frame(config.width, config.height)
+    if not cv2.imwrite(str(paths["floor_photo"]), cv2.cvtColor(photo, cv2.COLOR_RGB2BGR)):
+        raise ValueError(f"cannot write {paths['floor_photo']}")
     camerainfo.write(paths["camera_info"], camera, camera_name="overhead")
     write_arena(paths["arena"], env.task.geometry, camera)
     with open(paths["truth"], "w", newline="") as handle:

@@ -471,6 +471,42 @@ def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed
     believed = camerainfo.read(real["recording"]["camera_info"])
     assert believed.camera.matrix[0, 0] == pytest.approx(nominal.camera.matrix[0, 0] * 1.02)
     assert (tmp_path / "plain.mp4").read_bytes() != (tmp_path / "real.mp4").read_bytes()
+    # The recording's floor photo registers its camera (``peoplebot register``): a top plate
+    # anywhere in the arena is read within 3 cm (160x120), more than 5 cm off as believed.
+    from imitation import register
+    from peoplebot_sim import assets
+    from perception.arenafile import read_arena
+    from perception.camera import PinholeCamera
+
+    recording = real["recording"]
+    fitted = register.run(
+        recording["floor_photo"],
+        recording["camera_info"],
+        assets.FLOOR_MARKERS_TOML,
+        recording["arena"],
+        tmp_path / "room.toml",
+    )
+    assert len(fitted["markers"]) == 9
+
+    def camera(arena_path, info):
+        room = read_arena(arena_path)
+        return PinholeCamera(
+            info.camera.matrix,
+            info.camera.distortion,
+            info.camera.image_size,
+            room.camera_rotation,
+            room.camera_position_m,
+        )
+
+    plates = np.array([[x, y, 1.115] for x in (-1.7, 0.0, 1.7) for y in (-1.7, 0.0, 1.7)])
+    pixels = camera(plain["recording"]["arena"], nominal).project(plates)
+
+    def plate_error_m(arena_path):
+        back = camera(arena_path, believed).intersect_plane_z(pixels, 1.115)
+        return np.linalg.norm(back - plates, axis=1).max()
+
+    assert plate_error_m(recording["arena"]) > 0.05
+    assert plate_error_m(tmp_path / "room.toml") < 0.03
 
 
 def test_results_md_names_the_perturbations_a_run_turned_on():
