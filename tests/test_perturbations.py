@@ -174,28 +174,19 @@ def test_floor_marker_registration_replaces_the_believed_mount_pose():
     def plate_error_m(camera):
         return np.linalg.norm(camera.intersect_plane_z(pixels, 1.115) - plates, axis=1).max()
 
+    def overhead_camera(seed, registration):
+        perturbed = pt.PerturbationConfig(calibration=error)
+        vision = pt.student_vision(
+            "overhead", world, perturbed, DT, seed, False, overhead_registration=registration
+        )
+        return vision.calibration.overhead
+
     registered = []
     for seed in (0, 1):
-        believed = pt.student_vision(
-            "overhead",
-            world,
-            pt.PerturbationConfig(calibration=error),
-            DT,
-            seed,
-            watch_teacher=False,
-        )
-        vision = pt.student_vision(
-            "overhead",
-            world,
-            pt.PerturbationConfig(calibration=error),
-            DT,
-            seed,
-            watch_teacher=False,
-            overhead_registration="floor_markers",
-        )
-        assert plate_error_m(believed.calibration.overhead) > 0.08
-        assert plate_error_m(vision.calibration.overhead) < 0.03
-        registered.append(vision.calibration.overhead.position_world)
+        assert plate_error_m(overhead_camera(seed, "believed")) > 0.08
+        camera = overhead_camera(seed, "floor_markers")
+        assert plate_error_m(camera) < 0.03
+        registered.append(camera.position_world)
     np.testing.assert_allclose(registered[0], registered[1], atol=1e-9)  # the draw is forgotten
     with pytest.raises(
         ValueError, match="unknown overhead registration 'tape'; allowed: believed, floor_markers"
