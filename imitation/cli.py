@@ -172,9 +172,9 @@ def _randomisation_suffix(chosen) -> str:
     return "-randomised-" + "-".join(chosen.families) if chosen.active else "-unrandomised"
 
 
-def _brake_ahead_suffix(args) -> str:
-    """Returns the default folder's suffix for an explicit ``--brake-ahead`` and
-    ``--brake-limits``."""
+def _options_suffix(args) -> str:
+    """Returns the default folder's suffix for an explicit ``--brake-ahead``, ``--brake-limits``
+    and ``--overhead-registration`` (``_add_student_options``)."""
     suffix = "" if args.brake_ahead is None else f"-brake-ahead-{args.brake_ahead}"
     if args.brake_limits is not None:
         suffix += f"-brake-limits-{args.brake_limits}"
@@ -193,7 +193,7 @@ def _cmd_reproduce(args) -> int:
     out = args.out or RENDERS / ("reproduce-quick" if args.quick else "reproduce") / (
         f"{vision}-{config.learning.motor_source}-seed{config.seed}"
         + _randomisation_suffix(config.randomisation)
-        + _brake_ahead_suffix(args)
+        + _options_suffix(args)
     )
     results = run(config, out, fresh=args.fresh, reuse_from=args.reuse_from)
     print((pathlib.Path(out) / "results.md").read_text())
@@ -259,7 +259,7 @@ def _cmd_transfer(args) -> int:
     else:
         name = f"{sources[0].name}-to-{sources[-1].name}"
     out = args.out or RENDERS / "transfer" / (
-        f"{name}-{vision}" + (f"-{args.preset}" if args.preset else "") + _brake_ahead_suffix(args)
+        f"{name}-{vision}" + (f"-{args.preset}" if args.preset else "") + _options_suffix(args)
     )
     families = args.families
     if families is None and scale.families is not None:
@@ -376,6 +376,21 @@ def _cmd_figures(args) -> int:
     ]
     print("\n".join(str(p) for p in written))
     return 0
+
+
+def _add_student_options(parser: argparse.ArgumentParser) -> None:
+    """Adds the options ``reproduce`` and ``transfer`` share for how the students drive and see:
+    ``--brake-ahead``, ``--brake-limits``, ``--overhead-registration`` (default: the run's)."""
+    parser.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
+    parser.add_argument(
+        "--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP
+    )
+    parser.add_argument(
+        "--overhead-registration",
+        choices=OVERHEAD_REGISTRATIONS,
+        default=None,
+        help=OVERHEAD_REGISTRATION_HELP,
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -563,14 +578,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="the student's wheels follow its graded motor activations (default) or the "
         "strongest directive",
     )
-    rep.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
-    rep.add_argument("--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP)
-    rep.add_argument(
-        "--overhead-registration",
-        choices=OVERHEAD_REGISTRATIONS,
-        default=None,
-        help=OVERHEAD_REGISTRATION_HELP,
-    )
+    _add_student_options(rep)
     rep.add_argument("--no-videos", action="store_true", help="skip the student videos")
     rep.add_argument(
         "--mcap",
@@ -680,14 +688,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="perturbations under every level (e.g. realistic); default none",
     )
-    tra.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
-    tra.add_argument("--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP)
-    tra.add_argument(
-        "--overhead-registration",
-        choices=OVERHEAD_REGISTRATIONS,
-        default=None,
-        help=OVERHEAD_REGISTRATION_HELP,
-    )
+    _add_student_options(tra)
     tra.add_argument(
         "--combined",
         choices=(*PERTURBATION_PRESETS, "none"),

@@ -144,6 +144,24 @@ class LandmarkMap:
             raise ValueError(f"unknown landmark id {marker_id!r}; allowed: {sorted(self._by_id)}")
         return self._by_id[marker_id]
 
+    def select(self, found) -> list[tuple[int, np.ndarray]]:
+        """Returns this map's markers among ``(marker_id, corners_px (4, 2))`` detections of one
+        image, ids found more than once dropped (one of them is false), sorted by id; ValueError
+        for corners that are not 4 finite pixels."""
+        ids = [int(i) for i, _ in found]
+        out = []
+        for i, corners in found:
+            if int(i) not in self or ids.count(int(i)) != 1:
+                continue
+            corners = np.asarray(corners, dtype=float)
+            if corners.shape != (4, 2) or not np.all(np.isfinite(corners)):
+                raise ValueError(
+                    f"marker {i}: corners must be 4 finite pixels, shape (4, 2), "
+                    f"got shape {corners.shape}"
+                )
+            out.append((int(i), corners))
+        return sorted(out, key=lambda m: m[0])
+
     @property
     def ids(self) -> tuple[int, ...]:
         """Returns the ids, sorted."""
@@ -358,21 +376,8 @@ class LandmarkLocator:
 
     def select(self, found) -> list[tuple[int, np.ndarray]]:
         """Returns the map's markers among ``(marker_id, corners_px)`` detections (e.g. a shared
-        pass, ``self.detector.detect_all_corners``), ids found more than once dropped, sorted by
-        id."""
-        ids = [int(i) for i, _ in found]
-        out = []
-        for i, corners in found:
-            if int(i) not in self.map or ids.count(int(i)) != 1:
-                continue
-            corners = np.asarray(corners, dtype=float)
-            if corners.shape != (4, 2) or not np.all(np.isfinite(corners)):
-                raise ValueError(
-                    f"marker {i}: corners must be 4 finite pixels, shape (4, 2), "
-                    f"got shape {corners.shape}"
-                )
-            out.append((int(i), corners))
-        return sorted(out, key=lambda m: m[0])
+        pass, ``self.detector.detect_all_corners``): :meth:`LandmarkMap.select`."""
+        return self.map.select(found)
 
     def robot_camera(self, pan_deg: float, tilt_deg: float) -> PinholeCamera:
         """Returns the head camera posed in the robot frame (the robot at the world origin)."""

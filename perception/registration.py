@@ -46,7 +46,8 @@ def register_camera(
     Args:
       intrinsics: the camera's calibration (its pose is not read).
       found: ``(marker_id, corners_px (4, 2))`` detections in one image, ArUco corner order (e.g.
-        ``MarkerDetector.detect_all_corners``); ids not in the map, or found twice, are ignored.
+        ``MarkerDetector.detect_all_corners``); ids not in the map, or found twice, are ignored
+        (``LandmarkMap.select``).
       marker_map: where the markers lie.
       min_markers: fewest distinct map markers to fit (4 corners each).
 
@@ -54,19 +55,14 @@ def register_camera(
     """
     if isinstance(min_markers, bool) or not isinstance(min_markers, int) or min_markers < 1:
         raise ValueError(f"min_markers must be an integer >= 1, got {min_markers!r}")
-    ids = [int(i) for i, _ in found]
-    seen = sorted(
-        (int(i), np.asarray(c, dtype=float))
-        for i, c in found
-        if int(i) in marker_map and ids.count(int(i)) == 1
-    )
+    seen = marker_map.select(found)
     if len(seen) < min_markers:
         raise ValueError(
             f"registration needs at least {min_markers} of the map's {len(marker_map)} markers in "
             f"view, found {len(seen)} ({[i for i, _ in seen]})"
         )
     world = np.concatenate([marker_map[i].corners_world() for i, _ in seen])
-    pixels = np.concatenate([c.reshape(4, 2) for _, c in seen])
+    pixels = np.concatenate([c for _, c in seen])
     matrix = np.asarray(intrinsics.matrix, dtype=float)
     distortion = intrinsics.distortion if intrinsics.distortion.size else None
     ok, rvec, tvec = cv2.solvePnP(world, pixels, matrix, distortion, flags=cv2.SOLVEPNP_SQPNP)

@@ -415,11 +415,11 @@ def test_overhead_registration_option_sets_where_the_camera_pose_comes_from(comm
     """``--overhead-registration believed|floor_markers`` sets
     ``vision.overhead_registration`` (default the configuration's, believed) and names the
     default output folder; not a learning setting (runs share their networks)."""
-    from imitation.cli import _brake_ahead_suffix, build_parser
+    from imitation.cli import _options_suffix, build_parser
 
     source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
     args = build_parser().parse_args([command, *source, "--overhead-registration", "floor_markers"])
-    assert _brake_ahead_suffix(args) == "-overhead-floor-markers"
+    assert _options_suffix(args) == "-overhead-floor-markers"
     if command == "reproduce":
         assert reproduce_config(args).vision.overhead_registration == "floor_markers"
         default = reproduce_config(build_parser().parse_args(["reproduce"]))
@@ -433,12 +433,12 @@ def test_overhead_registration_option_sets_where_the_camera_pose_comes_from(comm
 def test_brake_limits_option_sets_where_the_braking_limits_come_from(command):
     """``--brake-limits told|estimated`` sets ``performance.brake_limits`` (default the
     configuration's, told) and names the default output folder."""
-    from imitation.cli import _brake_ahead_suffix, build_parser
+    from imitation.cli import _options_suffix, build_parser
 
     source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
     args = build_parser().parse_args([command, *source, "--brake-limits", "estimated"])
     assert args.brake_limits == "estimated"
-    assert _brake_ahead_suffix(args) == "-brake-limits-estimated"
+    assert _options_suffix(args) == "-brake-limits-estimated"
     if command == "reproduce":
         assert reproduce_config(args).performance.brake_limits == "estimated"
         default = reproduce_config(build_parser().parse_args(["reproduce"]))
