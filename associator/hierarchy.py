@@ -756,6 +756,16 @@ class HierarchicalAssociator:
             str(batch.words[0]), batch.scores[0], self.lower_.hidden_code(batch.winners[0])
         )
 
+    def _word_index(self, words, n: int) -> np.ndarray:
+        """Returns (n,) vocabulary indices of one word for all ``n`` samples or of a sequence
+        of ``n`` words (ValueError naming any other word, or a sequence of another length)."""
+        names = [words] * n if isinstance(words, str) else _word_list(words, self.vocabulary)
+        if len(names) != n:
+            raise ValueError(
+                f"vision and words must have the same number of samples, got {n} and {len(names)}"
+            )
+        return word_indices(names, self.vocabulary)
+
     def perform_batch(self, vision, words) -> BatchPerformance:
         """Chooses motor directives for ``n`` samples from vision (n, 96) and words (one word for
         all, or a sequence of ``n`` vocabulary words; ValueError naming any other).
@@ -773,12 +783,7 @@ class HierarchicalAssociator:
         self._check_fitted()
         vision = encoding.check_codes(vision, N_VISION, "vision")
         n = vision.shape[0]
-        names = [words] * n if isinstance(words, str) else _word_list(words, self.vocabulary)
-        if len(names) != n:
-            raise ValueError(
-                f"vision and words must have the same number of samples, got {n} and {len(names)}"
-            )
-        word_index = word_indices(names, self.vocabulary)
+        word_index = self._word_index(words, n)
         lower = self.lower_
         # Cosine between the vision code and each unit's vision weights: each unit's bottom-up
         # weights were normalised with the motor area present, so their vision parts differ in
@@ -852,6 +857,29 @@ class HierarchicalAssociator:
             rows = word_index == word
             out[rows] = weights[rows] @ table[word]
         return weights, out
+
+    def pose_log_density(self, vision, words) -> np.ndarray:
+        """Returns (n,): the log of the word's demonstration density at each vision code's pose,
+        ``log sum_k n_k p(pose | word, k)`` over the posterior read-out's counted components
+        (per unit and heading sector; -inf where the word has none), for vision (n, 96) and one
+        word or a sequence of ``n`` vocabulary words. Needs ``count_word_statistics``."""
+        self._check_fitted()
+        if not self.has_word_statistics_:
+            raise ValueError("pose_log_density needs count_word_statistics first")
+        vision = encoding.check_codes(vision, N_VISION, "vision")
+        n = vision.shape[0]
+        word_index = self._word_index(words, n)
+        out = np.empty(n)
+        chunk = max(1, _PERFORM_CHUNK // int(self.pose_heading_bins))
+        for start in range(0, n, chunk):
+            part = slice(start, min(start + chunk, n))
+            log = self._pose_log_likelihoods(vision[part], word_index[part], per_unit=False)
+            top = np.max(log, axis=1)
+            safe = np.where(np.isfinite(top), top, 0.0)
+            with np.errstate(divide="ignore"):
+                total = np.log(np.exp(log - safe[:, None]).sum(axis=1))
+            out[part] = np.where(np.isfinite(top), safe + total, -np.inf)
+        return out
 
     def perform(self, vision, word) -> Performance:
         """Chooses the motor directive for one vision code (96,) and word; see

@@ -226,6 +226,10 @@ class PerformanceConfig:
         student robot's ``perturbations.actuation``) or 'estimated' (identified from the robot's
         response to the student's own commands during each trial, ``imitation.limits``: a robot
         of unknown limits).
+      support_horizon_s, support_weight: the hierarchical student keeps to its demonstrations
+        (``performance.SupportLookahead``): each directive's activation is weighed by the
+        word's demonstration density where that directive would take the robot in
+        ``support_horizon_s``, raised to ``support_weight``; both 0 (default): off.
     """
 
     trials: int = 50
@@ -234,9 +238,22 @@ class PerformanceConfig:
     success: SuccessConfig = SuccessConfig()
     brake_ahead: bool = True
     brake_limits: str = "told"
+    support_horizon_s: float = 0.0
+    support_weight: float = 0.0
 
     def __post_init__(self):
         _check_count("performance.trials", self.trials)
+        support = (self.support_horizon_s, self.support_weight)
+        for name, value in zip(("support_horizon_s", "support_weight"), support, strict=True):
+            if isinstance(value, bool) or not (
+                isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
+            ):
+                raise ValueError(f"performance.{name} must be a number >= 0, got {value!r}")
+        if (support[0] > 0) != (support[1] > 0):
+            raise ValueError(
+                "performance.support_horizon_s and support_weight must both be 0 (off) or both "
+                f"above 0, got {support[0]!r} and {support[1]!r}"
+            )
         _check_choice("performance.drive", self.drive, DRIVE_MODES)
         _check_choice("performance.brake_limits", self.brake_limits, BRAKE_LIMITS)
         if not isinstance(self.brake_ahead, bool):

@@ -92,6 +92,8 @@ class StudentAgent:
         speeds (``braking_pose``), as the teacher brakes ahead; None: at its pose.
       limit_estimator: not told them, it brakes ahead at the limits this estimator identifies
         from its commands and measured speeds (``imitation.limits``; ``brake_ahead`` then None).
+      support: keep to the demonstrations (``SupportLookahead``; a model with
+        ``pose_log_density``, the hierarchical one); None: drive with the read-out as it is.
     """
 
     def __init__(
@@ -106,7 +108,13 @@ class StudentAgent:
         arena: ArenaGeometry = ArenaGeometry(),
         brake_ahead: Actuation | None = None,
         limit_estimator: AccelerationLimitEstimator | None = None,
+        support: SupportLookahead | None = None,
     ):
+        if support is not None and not hasattr(model, "pose_log_density"):
+            raise ValueError(
+                f"support lookahead needs a model with a demonstration density, "
+                f"got {type(model).__name__}"
+            )
         if brake_ahead is not None and limit_estimator is not None:
             raise ValueError(
                 "a student is told its limits (brake_ahead) or estimates them, not both"
@@ -118,6 +126,7 @@ class StudentAgent:
         self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
         self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
         self.brake_ahead, self.limit_estimator = brake_ahead, limit_estimator
+        self.support = support
         self.reset()
 
     def reset(self, timestep=None, start_pose=None) -> None:
@@ -155,9 +164,20 @@ class StudentAgent:
         vision = self.encoder.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True)
         result = self.model.perform(vision, self.word)
         self.directive, self.motor = result.directive, result.motor
+        if self.support is not None:
+            self.motor = self.support.reweigh(
+                self.model,
+                self.word,
+                self.motor,
+                self.query_pose,
+                self.drive,
+                self.encoder,
+                self.arena,
+            )
+            self.directive = encoding.DIRECTIVES[int(np.argmax(self.motor))]
         if self.graded:
-            return self.drive.graded_command(result.motor)
-        return self.drive.command(result.directive)
+            return self.drive.graded_command(self.motor)
+        return self.drive.command(self.directive)
 
     def step(self, timestep, dt: float = 0.1) -> np.ndarray:
         """Returns the action for one environment time step."""
@@ -167,6 +187,61 @@ class StudentAgent:
         self.own_covariance = None if localisation is None else localisation.covariance
         self.time_s += dt
         return make_action(self.spec, self.command(self.own_pose, dt), self.vision.head_command)
+
+
+@dataclasses.dataclass(frozen=True)
+class SupportLookahead:
+    """Keeps a student on its demonstrations: each directive's motor activation is multiplied by
+    ``q(pose after horizon_s of that directive) ** weight`` (renormalised to the same sum), ``q``
+    the word's demonstration density (``HierarchicalAssociator.pose_log_density``), so that where
+    the read-out extrapolates beyond what the teacher showed (past the dock, say) the directives
+    that lead back towards the demonstrations gain.
+
+    Attributes:
+      horizon_s: how far ahead each directive is followed at its wheel command, seconds (> 0).
+      weight: the exponent on the density (> 0).
+    """
+
+    horizon_s: float
+    weight: float
+
+    def __post_init__(self):
+        for name in ("horizon_s", "weight"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (
+                isinstance(value, (int, float)) and math.isfinite(value) and value > 0
+            ):
+                raise ValueError(f"support lookahead {name} must be a number > 0, got {value!r}")
+
+    def outcomes(self, pose, drive: DriveSpeeds) -> np.ndarray:
+        """Returns (4, 3): where each directive (``DIRECTIVES`` order) takes a robot at ``pose``
+        ``(x, y, yaw)`` (world metres and radians) in ``horizon_s`` at its wheel command."""
+        x, y, yaw = (float(v) for v in pose)
+        out = np.empty((len(encoding.DIRECTIVES), 3))
+        for i, directive in enumerate(encoding.DIRECTIVES):
+            linear, turn = drive.command(directive)
+            travel = linear * self.horizon_s
+            out[i] = (
+                x + travel * math.cos(yaw),
+                y + travel * math.sin(yaw),
+                yaw + turn * self.horizon_s,
+            )
+        return out
+
+    def reweigh(self, model, word, motor, pose, drive, encoder, arena) -> np.ndarray:
+        """Returns the motor activations (4,) reweighted by the density at each directive's
+        outcome; unchanged where the word has no demonstrations near any outcome."""
+        codes = []
+        for x, y, yaw in self.outcomes(pose, drive):
+            wall = world_to_wall(x, y, yaw, arena)
+            codes.append(encoder.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True))
+        log_density = model.pose_log_density(np.stack(codes), word)
+        if not np.all(np.isfinite(log_density)):
+            return np.asarray(motor, float)
+        motor = np.asarray(motor, float)
+        weighted = motor * np.exp(self.weight * (log_density - log_density.max()))
+        total = weighted.sum()
+        return weighted * (motor.sum() / total) if total > 0 else motor
 
 
 def braking_pose(previous, pose, dt: float, limits: Actuation) -> tuple[float, float, float]:

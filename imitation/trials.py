@@ -121,8 +121,17 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
         drive=config.drive,
         graded=config.performance.drive == "graded",
         arena=env.task.geometry,
+        support=_support(config) if policy == "student_hierarchical" else None,
         **_braking(config),
     )
+
+
+def _support(config: RunConfig) -> performance.SupportLookahead | None:
+    """Returns the hierarchical student's lookahead onto its demonstrations, or None (off)."""
+    c = config.performance
+    if c.support_horizon_s <= 0:
+        return None
+    return performance.SupportLookahead(c.support_horizon_s, c.support_weight)
 
 
 def _braking(config: RunConfig) -> dict:

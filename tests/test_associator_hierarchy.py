@@ -824,3 +824,34 @@ def test_perform_keeps_its_derived_tables_until_the_statistics_or_settings_chang
     widened = model.perform_batch(vision[:400], "pick")
     assert not np.array_equal(widened.motor, moved.motor)
     same(widened, afresh(model))
+
+
+def test_pose_log_density_is_the_log_sum_of_the_posterior_read_outs_components(learned, counted):
+    """``pose_log_density`` is ``log sum_k n_k p(pose | word, k)`` over the word's counted
+    components (the posterior read-out's weights before normalising; checked by hand), higher on
+    the word's own demonstrations than at poses the teacher never showed with it, and refused
+    before counting or with words of another length."""
+    _, _, stream, (vision, _, _, _) = learned
+    model, N = counted[0], 3000
+    words = np.array(stream.word[:N])
+    names = [WORDS[i] for i in words]
+    density = model.pose_log_density(vision[:N], names)
+    log = model._pose_log_likelihoods(vision[:N], words, per_unit=False)
+    top = log.max(axis=1)
+    by_hand = top + np.log(np.exp(log - top[:, None]).sum(axis=1))
+    np.testing.assert_allclose(density, by_hand, rtol=1e-12)
+    assert np.all(np.isfinite(density))
+    # One word for all equals the sequence of that word.
+    np.testing.assert_array_equal(
+        model.pose_log_density(vision[:50], "pick"),
+        model.pose_log_density(vision[:50], ["pick"] * 50),
+    )
+    # The synthetic teacher's 'pick' happens at the dock: its density is higher on 'pick'
+    # samples than on 'go' samples.
+    pick, go = words == WORDS.index("pick"), words == WORDS.index("go")
+    under_pick = model.pose_log_density(vision[:N], "pick")
+    assert np.median(under_pick[pick]) > np.median(under_pick[go]) + 1.0
+    with pytest.raises(ValueError, match="same number of samples, got 3000 and 2"):
+        model.pose_log_density(vision[:N], ["go", "pick"])
+    with pytest.raises(ValueError, match="needs count_word_statistics first"):
+        learned[0].pose_log_density(vision[:10], "go")

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from associator import encoding
+from associator.network import Performance
 from imitation import learning, performance, trials
 from imitation.cli import main
 from imitation.config import RunConfig
@@ -19,6 +20,7 @@ from imitation.performance import StudentAgent, TeacherAgent, make_action
 from imitation.recognition import watch_with_vision
 from peoplebot_sim import hardware, task
 from peoplebot_sim.teacher import Teacher, TeacherConfig
+from perception.drive import DriveSpeeds
 from perception.wallframe import ArenaGeometry, WallPose, wall_to_world, world_to_wall
 
 ARENA = ArenaGeometry()
@@ -141,6 +143,107 @@ def test_a_student_told_its_limits_asks_its_network_at_its_braking_pose(
     off = RunConfig().replace({"performance.brake_ahead": False})
     untold = trials.make_agent(off, "student", "go", student_env, trained_associator, None)
     assert untold.brake_ahead is None
+
+
+class _DensityModel:
+    """A stand-in for the hierarchical network: it drives 'forward' (0.6) or turns left (0.4)
+    everywhere, and its demonstration density falls with the squared distance of a pose's
+    wall-frame x from ``x_m`` (in vision-code units)."""
+
+    vocabulary = WORDS
+
+    def __init__(self, x_m: float):
+        self.x_units = x_m / ARENA.half_side_m * (encoding.N_X - 1)
+        self.motor = np.array([0.6, 0.0, 0.0, 0.4])
+
+    def perform(self, vision, word):
+        return Performance("forward", self.motor, np.zeros(0))
+
+    def pose_log_density(self, vision, word):
+        return -((encoding.vision_code_centres(vision)[:, 0] - self.x_units) ** 2)
+
+
+def test_support_lookahead_reweighs_each_directive_by_the_density_where_it_leads(student_env):
+    """Each directive is followed for ``horizon_s`` at its wheel command, and its activation is
+    multiplied by the density there raised to ``weight`` (the sum kept): facing a wall 1 m away
+    with demonstrations only 1.2 m from it, 'forward' (which leads away from them) loses against
+    the turn in place, and directives without activation stay at 0; a student
+    driving with it commands what the reweighed activations say; a network without a density
+    (the paper's) is refused; off in the run config by default, on for the hierarchical student
+    only when set."""
+    lookahead = performance.SupportLookahead(horizon_s=0.5, weight=1.0)
+    drive = DriveSpeeds()
+    ends = lookahead.outcomes((0.0, 0.0, math.pi / 2), drive)
+    np.testing.assert_allclose(ends[0], (0.0, 0.175, math.pi / 2), atol=1e-12)  # forward
+    np.testing.assert_allclose(ends[1], (0.0, -0.175, math.pi / 2), atol=1e-12)  # backward
+    np.testing.assert_allclose(ends[2], (0.0, 0.0, math.pi / 2 - math.radians(30)), atol=1e-12)
+    np.testing.assert_allclose(ends[3], (0.0, 0.0, math.pi / 2 + math.radians(30)), atol=1e-12)
+    model = _DensityModel(x_m=1.2)
+    enc = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
+    pose = (0.0, ARENA.half_side_m - 1.0, math.pi / 2)  # 1 m from the top wall, facing it
+    motor = lookahead.reweigh(model, "go", model.motor, pose, drive, enc, ARENA)
+    assert motor.sum() == pytest.approx(1.0) and motor[1] == 0.0 and motor[2] == 0.0
+    codes = []
+    for x, y, yaw in lookahead.outcomes(pose, drive):
+        wall = world_to_wall(x, y, yaw, ARENA)
+        codes.append(enc.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True))
+    density = model.pose_log_density(np.stack(codes), "go")
+    assert density[0] < density[3]  # forward leads away from the demonstrations
+    expected = model.motor * np.exp(density - density.max())
+    np.testing.assert_allclose(motor, expected / expected.sum())
+    assert motor[0] < 0.6 and motor[3] > 0.4
+    stronger = performance.SupportLookahead(horizon_s=0.5, weight=4.0)
+    assert stronger.reweigh(model, "go", model.motor, pose, drive, enc, ARENA)[0] < motor[0]
+    # Where every outcome is equally likely nothing changes.
+    flat = _DensityModel(x_m=1.0)
+    flat.pose_log_density = lambda vision, word: np.zeros(len(vision))
+    np.testing.assert_allclose(
+        lookahead.reweigh(flat, "go", flat.motor, pose, drive, enc, ARENA), flat.motor
+    )
+    spec = student_env.action_spec()
+    agent = StudentAgent(
+        model,
+        "go",
+        StudentVision("truth", watch_teacher=False),
+        enc,
+        spec,
+        graded=True,
+        support=lookahead,
+    )
+    agent.reset()
+    linear, turn = agent.command(pose)
+    np.testing.assert_allclose(agent.motor, motor)
+    assert (linear, turn) == pytest.approx(drive.graded_command(motor))
+    assert agent.directive == "turn_left"  # forward 0.6 alone would have won
+    for bad in (0.0, -1.0, float("nan"), True):
+        with pytest.raises(ValueError, match="support lookahead horizon_s must be a number > 0"):
+            performance.SupportLookahead(horizon_s=bad, weight=1.0)
+    assert trials._support(RunConfig()) is None
+    config = RunConfig().replace(
+        {"performance.support_horizon_s": 0.5, "performance.support_weight": 2.0}
+    )
+    assert trials._support(config) == performance.SupportLookahead(0.5, 2.0)
+    told = trials.make_agent(config, "student_hierarchical", "go", student_env, model, None)
+    assert told.support == performance.SupportLookahead(0.5, 2.0)
+
+
+def test_support_lookahead_needs_a_network_with_a_density(student_env, trained_associator):
+    with pytest.raises(
+        ValueError, match="needs a model with a demonstration density, got Associator"
+    ):
+        StudentAgent(
+            trained_associator,
+            "go",
+            StudentVision("truth", watch_teacher=False),
+            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+            student_env.action_spec(),
+            support=performance.SupportLookahead(0.5, 1.0),
+        )
+    config = RunConfig().replace(
+        {"performance.support_horizon_s": 0.5, "performance.support_weight": 2.0}
+    )
+    flat = trials.make_agent(config, "student", "go", student_env, trained_associator, None)
+    assert flat.support is None  # the paper's network drives as printed
 
 
 def test_a_student_not_told_its_limits_identifies_them_and_brakes_ahead_at_them(
@@ -602,6 +705,9 @@ def test_unknown_row_is_refused_by_name():
         ("performance.brake_ahead", "yes"),
         ("performance.brake_limits", "guessed"),
         ("vision.overhead_registration", "tape"),
+        ("performance.support_weight", -1.0),
+        ("performance.support_horizon_s", float("inf")),
+        ("performance.support_horizon_s", 0.5),  # without a weight
     ],
 )
 def test_bad_reproduce_settings_are_refused_by_name(field, value):
