@@ -6,7 +6,9 @@ kept between steps (as shipped) against computed afresh at every step.
 
 One perform step is what a student does each 0.1 s control step: one vision code, one word,
 ``HierarchicalAssociator.perform``. Both loops perform the same codes and must give the same
-directives and motor outputs. Everything runs on one thread (set before numpy is imported).
+directives and motor outputs. The student's support lookahead adds one density of four poses a
+step (``HierarchicalAssociator.pose_log_density``), timed on its own. Everything runs on one
+thread (set before numpy is imported).
 """
 
 from __future__ import annotations
@@ -46,6 +48,15 @@ def perform_all(model: HierarchicalAssociator, vision: np.ndarray, words) -> tup
     return time.perf_counter() - start, motor
 
 
+def densities_all(model: HierarchicalAssociator, vision: np.ndarray, words) -> float:
+    """Returns the seconds of one four-pose density a step (the support lookahead's), the four
+    codes being the step's code and its next three."""
+    start = time.perf_counter()
+    for i, word in enumerate(words):
+        model.pose_log_density(vision[i : i + 4], word)
+    return time.perf_counter() - start
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--network", type=pathlib.Path, help="a run's hierarchical.npz")
@@ -73,6 +84,8 @@ def main() -> None:
     print(f"kept tables:     {1000 * kept_s / args.steps:.2f} ms a step")
     print(f"computed afresh: {1000 * afresh_s / args.steps:.2f} ms a step")
     print(f"speed-up: {afresh_s / kept_s:.1f}x")
+    density_s = densities_all(model, np.vstack([vision, vision[:3]]), words)
+    print(f"support lookahead (4 densities): {1000 * density_s / args.steps:.2f} ms a step")
 
 
 if __name__ == "__main__":

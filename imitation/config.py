@@ -229,7 +229,8 @@ class PerformanceConfig:
       support_horizon_s, support_weight: the hierarchical student keeps to its demonstrations
         (``performance.SupportLookahead``): each directive's activation is weighed by the
         word's demonstration density where that directive would take the robot in
-        ``support_horizon_s``, raised to ``support_weight``; both 0 (default): off.
+        ``support_horizon_s``, raised to ``support_weight``; both 0: off. 0.5 s and 0.5 by
+        default since version 0.10.0 (chosen on tuning seeds 0-3, docs/results.md).
     """
 
     trials: int = 50
@@ -238,8 +239,8 @@ class PerformanceConfig:
     success: SuccessConfig = SuccessConfig()
     brake_ahead: bool = True
     brake_limits: str = "told"
-    support_horizon_s: float = 0.0
-    support_weight: float = 0.0
+    support_horizon_s: float = 0.5
+    support_weight: float = 0.5
 
     def __post_init__(self):
         _check_count("performance.trials", self.trials)
@@ -251,8 +252,8 @@ class PerformanceConfig:
                 raise ValueError(f"performance.{name} must be a number >= 0, got {value!r}")
         if (support[0] > 0) != (support[1] > 0):
             raise ValueError(
-                "performance.support_horizon_s and support_weight must both be 0 (off) or both "
-                f"above 0, got {support[0]!r} and {support[1]!r}"
+                "performance.support_horizon_s and performance.support_weight must both be 0 "
+                f"(off) or both above 0, got {support[0]!r} and {support[1]!r}"
             )
         _check_choice("performance.drive", self.drive, DRIVE_MODES)
         _check_choice("performance.brake_limits", self.brake_limits, BRAKE_LIMITS)

@@ -168,9 +168,8 @@ def test_support_lookahead_reweighs_each_directive_by_the_density_where_it_leads
     multiplied by the density there raised to ``weight`` (the sum kept): facing a wall 1 m away
     with demonstrations only 1.2 m from it, 'forward' (which leads away from them) loses against
     the turn in place, and directives without activation stay at 0; a student
-    driving with it commands what the reweighed activations say; a network without a density
-    (the paper's) is refused; off in the run config by default, on for the hierarchical student
-    only when set."""
+    driving with it commands what the reweighed activations say; the run config's default (0.5 s,
+    0.5) and its off (both 0) reach the hierarchical student."""
     lookahead = performance.SupportLookahead(horizon_s=0.5, weight=1.0)
     drive = DriveSpeeds()
     ends = lookahead.outcomes((0.0, 0.0, math.pi / 2), drive)
@@ -218,7 +217,9 @@ def test_support_lookahead_reweighs_each_directive_by_the_density_where_it_leads
     for bad in (0.0, -1.0, float("nan"), True):
         with pytest.raises(ValueError, match="support lookahead horizon_s must be a number > 0"):
             performance.SupportLookahead(horizon_s=bad, weight=1.0)
-    assert trials._support(RunConfig()) is None
+    assert trials._support(RunConfig()) == performance.SupportLookahead(0.5, 0.5)  # default
+    off = {"performance.support_horizon_s": 0.0, "performance.support_weight": 0.0}
+    assert trials._support(RunConfig().replace(off)) is None
     config = RunConfig().replace(
         {"performance.support_horizon_s": 0.5, "performance.support_weight": 2.0}
     )
@@ -707,7 +708,7 @@ def test_unknown_row_is_refused_by_name():
         ("vision.overhead_registration", "tape"),
         ("performance.support_weight", -1.0),
         ("performance.support_horizon_s", float("inf")),
-        ("performance.support_horizon_s", 0.5),  # without a weight
+        ("performance.support_weight", 0.0),  # the horizon left at 0.5 s
     ],
 )
 def test_bad_reproduce_settings_are_refused_by_name(field, value):
