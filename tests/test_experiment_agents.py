@@ -29,6 +29,19 @@ WORDS = ("go", "pick", "lift")
 WIDTH, HEIGHT = 320, 240  # the trials' camera size
 
 
+def truth_student(model, spec, word: str = "go", **options) -> StudentAgent:
+    """Returns a student told ``word`` that sees the simulator's poses, with ``options`` for
+    ``StudentAgent``."""
+    return StudentAgent(
+        model,
+        word,
+        StudentVision("truth", watch_teacher=False),
+        encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
+        spec,
+        **options,
+    )
+
+
 def drive_and_check(env, agent, start, n_steps: int) -> np.ndarray:
     """Runs ``agent`` from ``start`` for ``n_steps``, validating every action against the spec
     before the environment sees it; returns the actions (n_steps, 6)."""
@@ -61,14 +74,7 @@ def test_student_actions_in_truth_mode_satisfy_the_spec(student_env, trained_ass
     spec = student_env.action_spec()
     for word in WORDS:
         for start in (performance.FIG4_START, (-1.5, -1.2, 2.5)):
-            agent = StudentAgent(
-                trained_associator,
-                word,
-                StudentVision("truth", watch_teacher=False),
-                encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
-                spec,
-                graded=graded,
-            )
+            agent = truth_student(trained_associator, spec, word, graded=graded)
             actions = drive_and_check(student_env, agent, start, 40)
             assert np.any(actions[:, :2] != 0), (word, start)
             np.testing.assert_array_equal(actions[:, 2:], 0.0)
@@ -107,14 +113,7 @@ def test_a_student_told_its_limits_asks_its_network_at_its_braking_pose(
     aria = hardware.Actuation(linear_accel_mps2=0.3, yaw_accel_degps2=100.0)
     spec = student_env.action_spec()
     agents = {
-        told: StudentAgent(
-            trained_associator,
-            "go",
-            StudentVision("truth", watch_teacher=False),
-            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
-            spec,
-            brake_ahead=aria if told else None,
-        )
+        told: truth_student(trained_associator, spec, brake_ahead=aria if told else None)
         for told in (False, True)
     }
     for told, agent in agents.items():
@@ -232,11 +231,8 @@ def test_support_lookahead_needs_a_network_with_a_density(student_env, trained_a
     with pytest.raises(
         ValueError, match="needs a model with a demonstration density, got Associator"
     ):
-        StudentAgent(
+        truth_student(
             trained_associator,
-            "go",
-            StudentVision("truth", watch_teacher=False),
-            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
             student_env.action_spec(),
             support=performance.SupportLookahead(0.5, 1.0),
         )
@@ -280,11 +276,8 @@ def test_a_student_not_told_its_limits_identifies_them_and_brakes_ahead_at_them(
         linear.append(limits.linear_accel_mps2)
     assert 0.3 / 1.2 < linear[-1] < 0.3 * 1.2, linear  # it drove: the forward limit is identified
     with pytest.raises(ValueError, match="not both"):
-        StudentAgent(
+        truth_student(
             trained_associator,
-            "go",
-            StudentVision("truth", watch_teacher=False),
-            encoding.VisionEncoder(half_side_m=ARENA.half_side_m),
             env.action_spec(),
             brake_ahead=hardware.Actuation(),
             limit_estimator=AccelerationLimitEstimator(0.1),
