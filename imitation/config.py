@@ -229,8 +229,8 @@ class PerformanceConfig:
       support_horizon_s, support_weight: the hierarchical student keeps to its demonstrations
         (``performance.SupportLookahead``): each directive's activation is weighed by the
         word's demonstration density where that directive would take the robot in
-        ``support_horizon_s``, raised to ``support_weight``; both 0: off. 0.5 s and 0.5 by
-        default since version 0.10.0 (chosen on tuning seeds 0-3, docs/results.md).
+        ``support_horizon_s``, raised to ``support_weight``; both 0: off. On by default since
+        version 0.10.0 (the values chosen on tuning seeds 0-3, docs/results.md).
     """
 
     trials: int = 50
