@@ -26,6 +26,7 @@ from imitation.observers import OVERHEAD_REGISTRATIONS, SELF_LOCALISATIONS, VISI
 from imitation.performance import DRIVE_MODES, SuccessConfig
 from imitation.perturbations import PerturbationConfig
 from imitation.randomisation import RandomisationConfig
+from imitation.speedgain import SUPPORT_SPEEDS
 from peoplebot_sim.task import TaskConfig
 from peoplebot_sim.teacher import TeacherConfig
 from perception.drive import DriveSpeeds
@@ -231,6 +232,9 @@ class PerformanceConfig:
         word's demonstration density where that directive would take the robot in
         ``support_horizon_s``, raised to ``support_weight``; both 0: off. On by default since
         version 0.10.0 (the values chosen on tuning seeds 0-3, docs/results.md).
+      support_speeds: the speeds the lookahead follows each directive at: 'nominal' (the
+        directives' wheel commands) or 'measured' (those scaled by the fractions of them the
+        robot is measured to achieve during the trial, ``imitation.speedgain``).
     """
 
     trials: int = 50
@@ -241,6 +245,7 @@ class PerformanceConfig:
     brake_limits: str = "told"
     support_horizon_s: float = 0.5
     support_weight: float = 0.5
+    support_speeds: str = "nominal"
 
     def __post_init__(self):
         _check_count("performance.trials", self.trials)
@@ -257,6 +262,7 @@ class PerformanceConfig:
             )
         _check_choice("performance.drive", self.drive, DRIVE_MODES)
         _check_choice("performance.brake_limits", self.brake_limits, BRAKE_LIMITS)
+        _check_choice("performance.support_speeds", self.support_speeds, SUPPORT_SPEEDS)
         if not isinstance(self.brake_ahead, bool):
             raise ValueError(
                 f"performance.brake_ahead must be true or false, got {self.brake_ahead!r}"

@@ -33,6 +33,7 @@ from associator import encoding
 from associator.network import Associator
 from imitation.limits import AccelerationLimitEstimator
 from imitation.observers import StudentVision, pose_or_nan
+from imitation.speedgain import SpeedGainEstimator
 from peoplebot_sim.entities import BASE_RADIUS_M
 from peoplebot_sim.hardware import Actuation, braking_travel
 from peoplebot_sim.teacher import Teacher, TeacherConfig
@@ -94,6 +95,8 @@ class StudentAgent:
         from its commands and measured speeds (``imitation.limits``; ``brake_ahead`` then None).
       support: keep to the demonstrations (``SupportLookahead``; a model with
         ``pose_log_density``, the hierarchical one); None: drive with the read-out as it is.
+      speed_gains: the lookahead follows each directive at the speeds this estimator finds the
+        robot achieves (``imitation.speedgain``); None: at the nominal wheel commands.
     """
 
     def __init__(
@@ -109,7 +112,10 @@ class StudentAgent:
         brake_ahead: Actuation | None = None,
         limit_estimator: AccelerationLimitEstimator | None = None,
         support: SupportLookahead | None = None,
+        speed_gains: SpeedGainEstimator | None = None,
     ):
+        if speed_gains is not None and support is None:
+            raise ValueError("measured speeds are for the support lookahead, which is off")
         if support is not None and not hasattr(model, "pose_log_density"):
             raise ValueError(
                 f"support lookahead needs a model with a demonstration density, "
@@ -126,7 +132,7 @@ class StudentAgent:
         self.model, self.word, self.vision, self.encoder = model, word, vision, encoder
         self.spec, self.drive, self.graded, self.arena = action_spec, drive, graded, arena
         self.brake_ahead, self.limit_estimator = brake_ahead, limit_estimator
-        self.support = support
+        self.support, self.speed_gains = support, speed_gains
         self.reset()
 
     def reset(self, timestep=None, start_pose=None) -> None:
@@ -137,19 +143,22 @@ class StudentAgent:
         self.own_covariance = None
         self.time_s = 0.0
         self.query_pose, self._last_pose, self._last_command = None, None, (0.0, 0.0)
-        if self.limit_estimator is not None:
-            self.limit_estimator.reset()
+        for estimator in (self.limit_estimator, self.speed_gains):
+            if estimator is not None:
+                estimator.reset()
 
     def command(self, own_pose, dt: float = 0.1) -> tuple[float, float]:
         """Returns ``(linear m/s, yaw rate rad/s)`` for an own-pose estimate (None: stand still);
         ``dt``: seconds since the previous estimate (for the measured speeds)."""
         last, self._last_pose = self._last_pose, own_pose
         limits = self.brake_ahead
+        known = last is not None and own_pose is not None
+        speeds = measured_speeds(last, own_pose, dt) if known else None
         if self.limit_estimator is not None:
-            known = last is not None and own_pose is not None
-            speeds = measured_speeds(last, own_pose, dt) if known else None
             self.limit_estimator.update(self._last_command, speeds)
             limits = self.limit_estimator.limits
+        if self.speed_gains is not None:
+            self.speed_gains.update(self._last_command, speeds)
         self._last_command = self._command(own_pose, last, dt, limits)
         return self._last_command
 
@@ -173,6 +182,7 @@ class StudentAgent:
                 self.drive,
                 self.encoder,
                 self.arena,
+                gains=(1.0, 1.0) if self.speed_gains is None else self.speed_gains.gains,
             )
             self.directive = encoding.DIRECTIVES[int(np.argmax(self.motor))]
         if self.graded:
@@ -213,13 +223,15 @@ class SupportLookahead:
             ):
                 raise ValueError(f"support lookahead {name} must be a number > 0, got {value!r}")
 
-    def outcomes(self, pose, drive: DriveSpeeds) -> np.ndarray:
+    def outcomes(self, pose, drive: DriveSpeeds, gains=(1.0, 1.0)) -> np.ndarray:
         """Returns (4, 3): where each directive (``DIRECTIVES`` order) takes a robot at ``pose``
-        ``(x, y, yaw)`` (world metres and radians) in ``horizon_s`` at its wheel command."""
+        ``(x, y, yaw)`` (world metres and radians) in ``horizon_s`` at its wheel command scaled
+        by ``gains`` (the fractions of the forward speed and the yaw rate the robot achieves)."""
         x, y, yaw = (float(v) for v in pose)
         out = np.empty((len(encoding.DIRECTIVES), 3))
         for i, directive in enumerate(encoding.DIRECTIVES):
             linear, turn = drive.command(directive)
+            linear, turn = linear * gains[0], turn * gains[1]
             travel = linear * self.horizon_s
             out[i] = (
                 x + travel * math.cos(yaw),
@@ -228,11 +240,13 @@ class SupportLookahead:
             )
         return out
 
-    def reweigh(self, model, word, motor, pose, drive, encoder, arena) -> np.ndarray:
+    def reweigh(
+        self, model, word, motor, pose, drive, encoder, arena, gains=(1.0, 1.0)
+    ) -> np.ndarray:
         """Returns the motor activations (4,) reweighted by the density at each directive's
-        outcome; unchanged where the word has no demonstrations near any outcome."""
+        outcome (``outcomes``); unchanged where the word has no demonstrations near any outcome."""
         codes = []
-        for x, y, yaw in self.outcomes(pose, drive):
+        for x, y, yaw in self.outcomes(pose, drive, gains):
             wall = world_to_wall(x, y, yaw, arena)
             codes.append(encoder.encode(wall.x_m, wall.y_m, wall.phi_deg, clip=True))
         log_density = model.pose_log_density(np.stack(codes), word)

@@ -18,6 +18,7 @@ from imitation.config import RunConfig
 from imitation.observers import Calibration, StudentVision
 from imitation.performance import StudentAgent, TeacherAgent, make_action
 from imitation.recognition import watch_with_vision
+from imitation.speedgain import SpeedGainEstimator
 from peoplebot_sim import hardware, task
 from peoplebot_sim.teacher import Teacher, TeacherConfig
 from perception.drive import DriveSpeeds
@@ -225,6 +226,36 @@ def test_support_lookahead_reweighs_each_directive_by_the_density_where_it_leads
     assert trials._support(config) == performance.SupportLookahead(0.5, 2.0)
     told = trials.make_agent(config, "student_hierarchical", "go", student_env, model, None)
     assert told.support == performance.SupportLookahead(0.5, 2.0)
+
+
+def test_measured_speeds_reach_the_hierarchical_students_lookahead(student_env, trained_associator):
+    """'nominal' (the default) gives no estimator; 'measured' gives the hierarchical student one
+    and the paper's network none; a student whose robot did not move between two commands
+    follows the directives at the lower fractions it measured; an estimator without a lookahead
+    and an unknown choice are refused by name."""
+    assert "speed_gains" not in trials._support_arguments(RunConfig(), "student_hierarchical")
+    measured = RunConfig().replace({"performance.support_speeds": "measured"})
+    model = _DensityModel(x_m=1.2)
+    agent = trials.make_agent(measured, "student_hierarchical", "go", student_env, model, None)
+    assert isinstance(agent.speed_gains, SpeedGainEstimator)
+    flat = trials.make_agent(measured, "student", "go", student_env, trained_associator, None)
+    assert flat.support is None and flat.speed_gains is None
+    pose = (0.0, ARENA.half_side_m - 1.0, math.pi / 2)
+    agent.reset()
+    first = agent.command(pose)
+    agent.command(pose)  # the robot stood still under the first command
+    gains = agent.speed_gains.gains
+    assert all(g < 1.0 for g, sent in zip(gains, first, strict=True) if sent != 0.0)
+    assert gains != (1.0, 1.0)
+    enc = encoding.VisionEncoder(half_side_m=ARENA.half_side_m)
+    expected = agent.support.reweigh(
+        model, "go", model.motor, pose, DriveSpeeds(), enc, ARENA, gains=gains
+    )
+    np.testing.assert_allclose(agent.motor, expected)
+    with pytest.raises(ValueError, match="measured speeds are for the support lookahead"):
+        truth_student(model, student_env.action_spec(), speed_gains=SpeedGainEstimator())
+    with pytest.raises(ValueError, match=r"performance\.support_speeds"):
+        RunConfig().replace({"performance.support_speeds": "guessed"})
 
 
 def test_support_lookahead_needs_a_network_with_a_density(student_env, trained_associator):

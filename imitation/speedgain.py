@@ -1,0 +1,102 @@
+"""How much of its commanded speeds a robot achieves, estimated as it drives.
+
+A robot whose casters drag, whose floor is soft or whose firmware ramps slowly covers less ground
+than its wheel commands say. The support lookahead (``performance.SupportLookahead``) follows each
+directive for a fraction of a second to see where it leads; told the achieved fractions, it follows
+the directive at the speeds the robot really reaches. Per axis (forward speed, yaw rate), the
+fraction is the least-squares slope through the origin of the measured speed on the command sent
+at the step's start, over the steps so far with exponential forgetting, started from a prior of
+full speed (fraction 1) worth a few steps at the directives' speeds (forgotten alike), and kept
+within bounds. The
+delay between a command and the speeds it causes is not modelled: a ramp or a latency shows as a
+lower fraction, which is where the robot really is after the lookahead's horizon.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from perception.drive import DriveSpeeds
+
+#: What speeds the support lookahead follows each directive at
+#: (``PerformanceConfig.support_speeds``): the directives' nominal wheel commands, or those
+#: scaled by the fractions this module estimates.
+SUPPORT_SPEEDS = ("nominal", "measured")
+
+
+@dataclasses.dataclass(frozen=True)
+class SpeedGainSettings:
+    """The estimator's hyper-parameters.
+
+    Attributes:
+      forgetting: per control step, the weight left on what came before (0-1; 0.95: a memory of
+        about 20 steps, 2 s at the 0.1 s step).
+      prior_steps: the prior's weight at the start, in steps at the directives' full speeds (> 0).
+      bounds: the least and largest fraction reported.
+    """
+
+    forgetting: float = 0.95
+    prior_steps: float = 2.0
+    bounds: tuple[float, float] = (0.1, 1.5)
+
+    def __post_init__(self):
+        if not (0 <= self.forgetting < 1):
+            raise ValueError(f"speed gain forgetting must be in [0, 1), got {self.forgetting!r}")
+        if not (math.isfinite(self.prior_steps) and self.prior_steps > 0):
+            raise ValueError(f"speed gain prior_steps must be > 0, got {self.prior_steps!r}")
+        low, high = self.bounds
+        if not (0 < low <= 1 <= high):
+            raise ValueError(
+                f"speed gain bounds must hold 0 < low <= 1 <= high, got {self.bounds!r}"
+            )
+
+
+class SpeedGainEstimator:
+    """The fractions of the commanded forward speed and yaw rate a robot achieves.
+
+    Args:
+      drive: the directives' speeds (the prior's scale).
+      settings: the estimator's hyper-parameters.
+    """
+
+    def __init__(self, drive: DriveSpeeds = DriveSpeeds(), settings=SpeedGainSettings()):
+        self.settings = settings
+        # The prior's command magnitudes (m/s, deg/s) and its weight in their squares.
+        scale = (drive.linear_mps, drive.turn_deg_s)
+        self._prior = tuple(settings.prior_steps * s * s for s in scale)
+        self.reset()
+
+    def reset(self) -> None:
+        """Starts knowing nothing but the prior (fraction 1 on both axes)."""
+        # Per axis: sum of measured x commanded, sum of commanded squared, the prior's included
+        # (forgotten alike with the measurements).
+        self._moment = list(self._prior)
+        self._power = list(self._prior)
+
+    def update(self, command, measured=None) -> None:
+        """Advances one control step.
+
+        Args:
+          command: ``(linear m/s, yaw rate rad/s)`` sent at the step's start.
+          measured: ``(forward speed m/s, yaw rate deg/s)`` measured over the step, or None
+            (no pose estimate: nothing learnt, nothing forgotten).
+        """
+        if measured is None:
+            return
+        sent = (float(command[0]), math.degrees(float(command[1])))
+        keep = self.settings.forgetting
+        for i in range(2):
+            if not math.isfinite(measured[i]):
+                continue
+            self._moment[i] = keep * self._moment[i] + sent[i] * float(measured[i])
+            self._power[i] = keep * self._power[i] + sent[i] * sent[i]
+
+    @property
+    def gains(self) -> tuple[float, float]:
+        """Returns the achieved fractions ``(forward, yaw)`` of the commanded speeds."""
+        low, high = self.settings.bounds
+        return tuple(
+            min(high, max(low, moment / power))
+            for moment, power in zip(self._moment, self._power, strict=True)
+        )
