@@ -14,6 +14,7 @@ import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL before anything imports mujo
 from imitation.calibrate import DEFAULT_BOARD_SPEC
 from imitation.limits import BRAKE_LIMITS
 from imitation.observers import OVERHEAD_REGISTRATIONS
+from imitation.speedgain import SUPPORT_SPEEDS
 from peoplebot_sim.viewpoints import VIEWS
 
 RENDERS = pathlib.Path("renders")
@@ -105,6 +106,13 @@ BRAKE_LIMITS_HELP = (
     "run's performance.brake_limits, told)"
 )
 
+SUPPORT_SPEEDS_HELP = (
+    "the speeds the hierarchical student's support lookahead follows each directive at: "
+    "nominal, its wheel commands, or measured, those scaled by the fractions of them the robot "
+    "is measured to achieve during each trial (a robot whose casters drag; default: the run's "
+    "performance.support_speeds, nominal)"
+)
+
 OVERHEAD_REGISTRATION_HELP = (
     "the overhead mode's camera pose: believed, as calibrated (with the preset's calibration "
     "error), or floor_markers, fitted once to the camera's photo of the floor markers "
@@ -126,6 +134,7 @@ REPRODUCE_OPTIONS = {
     "workers": "workers",
     "drive": "performance.drive",
     "brake_limits": "performance.brake_limits",
+    "support_speeds": "performance.support_speeds",
     "overhead_registration": "vision.overhead_registration",
 }
 
@@ -173,11 +182,13 @@ def _randomisation_suffix(chosen) -> str:
 
 
 def _options_suffix(args) -> str:
-    """Returns the default folder's suffix for an explicit ``--brake-ahead``, ``--brake-limits``
-    and ``--overhead-registration`` (``_add_student_options``)."""
+    """Returns the default folder's suffix for an explicit ``--brake-ahead``, ``--brake-limits``,
+    ``--support-speeds`` and ``--overhead-registration`` (``_add_student_options``)."""
     suffix = "" if args.brake_ahead is None else f"-brake-ahead-{args.brake_ahead}"
     if args.brake_limits is not None:
         suffix += f"-brake-limits-{args.brake_limits}"
+    if args.support_speeds is not None:
+        suffix += f"-support-speeds-{args.support_speeds}"
     if args.overhead_registration is not None:
         suffix += f"-overhead-{args.overhead_registration.replace('_', '-')}"
     return suffix
@@ -242,6 +253,8 @@ def _cmd_transfer(args) -> int:
         changes["performance.brake_ahead"] = args.brake_ahead == "on"
     if args.brake_limits is not None:
         changes["performance.brake_limits"] = args.brake_limits
+    if args.support_speeds is not None:
+        changes["performance.support_speeds"] = args.support_speeds
     if args.overhead_registration is not None:
         changes["vision.overhead_registration"] = args.overhead_registration
     sources = transfer_runs.expand_sources(args.reuse_from)
@@ -380,10 +393,14 @@ def _cmd_figures(args) -> int:
 
 def _add_student_options(parser: argparse.ArgumentParser) -> None:
     """Adds the options ``reproduce`` and ``transfer`` share for how the students drive and see:
-    ``--brake-ahead``, ``--brake-limits``, ``--overhead-registration`` (default: the run's)."""
+    ``--brake-ahead``, ``--brake-limits``, ``--support-speeds``, ``--overhead-registration``
+    (default: the run's)."""
     parser.add_argument("--brake-ahead", choices=("on", "off"), default=None, help=BRAKE_AHEAD_HELP)
     parser.add_argument(
         "--brake-limits", choices=BRAKE_LIMITS, default=None, help=BRAKE_LIMITS_HELP
+    )
+    parser.add_argument(
+        "--support-speeds", choices=SUPPORT_SPEEDS, default=None, help=SUPPORT_SPEEDS_HELP
     )
     parser.add_argument(
         "--overhead-registration",

@@ -447,6 +447,23 @@ def test_brake_limits_option_sets_where_the_braking_limits_come_from(command):
         build_parser().parse_args([command, *source, "--brake-limits", "guessed"])
 
 
+@pytest.mark.parametrize("command", ["reproduce", "transfer"])
+def test_support_speeds_option_sets_the_lookaheads_speeds(command):
+    """``--support-speeds nominal|measured`` sets ``performance.support_speeds`` (default the
+    configuration's, nominal) and names the default output folder."""
+    from imitation.cli import _options_suffix, build_parser
+
+    source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
+    args = build_parser().parse_args([command, *source, "--support-speeds", "measured"])
+    assert _options_suffix(args) == "-support-speeds-measured"
+    if command == "reproduce":
+        assert reproduce_config(args).performance.support_speeds == "measured"
+        default = reproduce_config(build_parser().parse_args(["reproduce"]))
+        assert default.performance.support_speeds == "nominal"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args([command, *source, "--support-speeds", "guessed"])
+
+
 def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed_calibration(
     tmp_path,
 ):
