@@ -329,7 +329,7 @@ def run(
     generation per seed, steps and world; ``peoplebot sweep`` passes one).
     """
     folder = pathlib.Path(out_dir)
-    state = RunState(folder, config.to_dict(), fresh=fresh)
+    state = RunState(folder, config.to_dict(), fresh=fresh, defaults=RunConfig().to_dict())
     try:
         run_config.dump(config, folder / "config.toml")
         _drop_changed_stages(state, reusing=reuse_from is not None)

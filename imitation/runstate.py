@@ -54,10 +54,14 @@ class RunState:
         or made by another version of the package, is refused (start a fresh folder, or pass
         ``fresh``).
       fresh: remove everything an earlier run wrote into the folder first.
+      defaults: the configuration's default values; a setting the saved configuration lacks
+        counts as its default there (a setting added later within the same version, which
+        defaults to the behaviour before it). None: every setting must be saved.
     """
 
-    def __init__(self, folder, config: dict, fresh: bool = False):
+    def __init__(self, folder, config: dict, fresh: bool = False, defaults: dict | None = None):
         config = json.loads(json.dumps(config))  # as it will read back: tuples become lists
+        self._defaults = None if defaults is None else json.loads(json.dumps(defaults))
         self.folder = pathlib.Path(folder)
         if self.folder.exists() and not self.folder.is_dir():
             raise ValueError(f"--out {self.folder} is a file, not a folder; choose a folder")
@@ -106,8 +110,11 @@ class RunState:
                 f"{self.folder} was made by peoplebot-imitation {saved['version']}, this is "
                 f"{self.version}; {fix}"
             )
-        if _identity(saved["config"]) != _identity(config):
-            changed = differing_keys(_identity(saved["config"]), _identity(config))
+        made = saved["config"]
+        if self._defaults is not None:
+            made = with_defaults(made, self._defaults)
+        if _identity(made) != _identity(config):
+            changed = differing_keys(_identity(made), _identity(config))
             raise ValueError(
                 f"{self.folder} holds a run with other settings ({', '.join(changed)}); use "
                 "another --out folder or --fresh to start over"
@@ -234,6 +241,17 @@ def _checksum(data: dict) -> str:
 
 def _relative(path, folder: pathlib.Path) -> str:
     return str(pathlib.Path(path).resolve().relative_to(folder.resolve()))
+
+
+def with_defaults(config: dict, defaults: dict) -> dict:
+    """Returns ``config`` with the keys it lacks (at any depth) taken from ``defaults``."""
+    out = dict(config)
+    for key, value in defaults.items():
+        if key not in out:
+            out[key] = value
+        elif isinstance(out[key], dict) and isinstance(value, dict):
+            out[key] = with_defaults(out[key], value)
+    return out
 
 
 def differing_keys(a: dict, b: dict, prefix: str = "") -> list[str]:

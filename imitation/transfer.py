@@ -216,7 +216,7 @@ def finished_cell(cell: TransferCell, folder: pathlib.Path, fresh: bool = False)
     the folder ready to run it (``fresh``: what an earlier run wrote there is removed; a stage
     whose files were lost is forgotten). ValueError in one line when the folder holds a cell of
     other settings."""
-    state = RunState(folder, cell.config.to_dict(), fresh=fresh)
+    state = RunState(folder, cell.config.to_dict(), fresh=fresh, defaults=RunConfig().to_dict())
     try:
         if state.done("performance") and not state.intact("performance"):
             state.forget(["performance"])
@@ -236,7 +236,7 @@ def run_cell(config: dict, source: str, folder: str, students_only: bool = False
     policies = trials.policies_of(config)
     if students_only:
         policies = tuple(p for p in policies if p != "teacher")
-    state = RunState(folder, config.to_dict())
+    state = RunState(folder, config.to_dict(), defaults=RunConfig().to_dict())
     try:
         if not state.done("recognition"):
             wall, cpu = time.perf_counter(), time.process_time()

@@ -342,3 +342,21 @@ def test_a_stage_rerun_keeps_the_stages_after_it_only_if_it_writes_the_same_file
         assert not state.done("second") and not state.replacing("first")
         state.close()
         (tmp_path / "state.json").unlink()
+
+
+def test_a_setting_added_later_counts_as_its_default_in_an_earlier_folder(tmp_path):
+    """A folder whose saved configuration lacks a setting (made before the setting existed,
+    within the same version) resumes when the setting is at its default, and is refused, naming
+    the setting, when it is not; without defaults every setting must match."""
+    from imitation.runstate import RunState
+
+    defaults = {"seed": 0, "performance": {"trials": 50, "new_option": "off"}}
+    earlier = {"seed": 3, "performance": {"trials": 10}}
+    RunState(tmp_path, earlier).close()
+    same = {"seed": 3, "performance": {"trials": 10, "new_option": "off"}}
+    RunState(tmp_path, same, defaults=defaults).close()
+    changed = {"seed": 3, "performance": {"trials": 10, "new_option": "on"}}
+    with pytest.raises(ValueError, match=r"other settings \(performance\.new_option\)"):
+        RunState(tmp_path, changed, defaults=defaults)
+    with pytest.raises(ValueError, match=r"other settings \(performance\.new_option\)"):
+        RunState(tmp_path, same)
