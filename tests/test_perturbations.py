@@ -410,58 +410,56 @@ def test_reproduce_takes_brake_ahead(flag, value):
         build_parser().parse_args(["reproduce", "--brake-ahead", "yes"])
 
 
-@pytest.mark.parametrize("command", ["reproduce", "transfer"])
-def test_overhead_registration_option_sets_where_the_camera_pose_comes_from(command):
-    """``--overhead-registration believed|floor_markers`` sets
-    ``vision.overhead_registration`` (default the configuration's, believed) and names the
-    default output folder; not a learning setting (runs share their networks)."""
-    from imitation.cli import _options_suffix, build_parser
-
-    source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
-    args = build_parser().parse_args([command, *source, "--overhead-registration", "floor_markers"])
-    assert _options_suffix(args) == "-overhead-floor-markers"
-    if command == "reproduce":
-        assert reproduce_config(args).vision.overhead_registration == "floor_markers"
-        default = reproduce_config(build_parser().parse_args(["reproduce"]))
-        assert default.vision.overhead_registration == "believed"
-    assert "vision" not in SHARED_LEARNING_SECTIONS
-    with pytest.raises(SystemExit):
-        build_parser().parse_args([command, *source, "--overhead-registration", "tape"])
-
-
-@pytest.mark.parametrize("command", ["reproduce", "transfer"])
-def test_brake_limits_option_sets_where_the_braking_limits_come_from(command):
-    """``--brake-limits told|estimated`` sets ``performance.brake_limits`` (default the
-    configuration's, told) and names the default output folder."""
-    from imitation.cli import _options_suffix, build_parser
-
-    source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
-    args = build_parser().parse_args([command, *source, "--brake-limits", "estimated"])
-    assert args.brake_limits == "estimated"
-    assert _options_suffix(args) == "-brake-limits-estimated"
-    if command == "reproduce":
-        assert reproduce_config(args).performance.brake_limits == "estimated"
-        default = reproduce_config(build_parser().parse_args(["reproduce"]))
-        assert default.performance.brake_limits == "told"
-    with pytest.raises(SystemExit):
-        build_parser().parse_args([command, *source, "--brake-limits", "guessed"])
+STUDENT_OPTIONS = [
+    # flag, value, its config key, the key's default, the folder suffix, a refused value
+    (
+        "--overhead-registration",
+        "floor_markers",
+        "vision.overhead_registration",
+        "believed",
+        "-overhead-floor-markers",
+        "tape",
+    ),
+    (
+        "--brake-limits",
+        "estimated",
+        "performance.brake_limits",
+        "told",
+        "-brake-limits-estimated",
+        "guessed",
+    ),
+    (
+        "--support-speeds",
+        "measured",
+        "performance.support_speeds",
+        "nominal",
+        "-support-speeds-measured",
+        "guessed",
+    ),
+]
 
 
 @pytest.mark.parametrize("command", ["reproduce", "transfer"])
-def test_support_speeds_option_sets_the_lookaheads_speeds(command):
-    """``--support-speeds nominal|measured`` sets ``performance.support_speeds`` (default the
-    configuration's, nominal) and names the default output folder."""
+@pytest.mark.parametrize("flag, value, key, default, suffix, bad", STUDENT_OPTIONS)
+def test_student_options_set_their_config_key_and_name_the_folder(
+    command, flag, value, key, default, suffix, bad
+):
+    """``--overhead-registration``, ``--brake-limits`` and ``--support-speeds`` set their key
+    (default the configuration's) and name the default output folder; none is a learning
+    setting (runs share their networks); an unknown value is refused."""
     from imitation.cli import _options_suffix, build_parser
 
     source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
-    args = build_parser().parse_args([command, *source, "--support-speeds", "measured"])
-    assert _options_suffix(args) == "-support-speeds-measured"
+    args = build_parser().parse_args([command, *source, flag, value])
+    assert _options_suffix(args) == suffix
+    section, name = key.split(".")
     if command == "reproduce":
-        assert reproduce_config(args).performance.support_speeds == "measured"
-        default = reproduce_config(build_parser().parse_args(["reproduce"]))
-        assert default.performance.support_speeds == "nominal"
+        assert getattr(getattr(reproduce_config(args), section), name) == value
+        plain = reproduce_config(build_parser().parse_args(["reproduce"]))
+        assert getattr(getattr(plain, section), name) == default
+    assert section not in SHARED_LEARNING_SECTIONS
     with pytest.raises(SystemExit):
-        build_parser().parse_args([command, *source, "--support-speeds", "guessed"])
+        build_parser().parse_args([command, *source, flag, bad])
 
 
 def test_demo_with_the_realistic_preset_records_degraded_frames_and_the_believed_calibration(
