@@ -120,6 +120,14 @@ OVERHEAD_REGISTRATION_HELP = (
     "vision.overhead_registration, believed)"
 )
 
+#: Options ``reproduce`` and ``transfer`` share (``_add_student_options``) and the config keys
+#: they set (``--brake-ahead``, on/off, is mapped on its own).
+STUDENT_OPTIONS = {
+    "brake_limits": "performance.brake_limits",
+    "support_speeds": "performance.support_speeds",
+    "overhead_registration": "vision.overhead_registration",
+}
+
 #: Command-line options of ``reproduce`` and the config keys they set.
 REPRODUCE_OPTIONS = {
     "seed": "seed",
@@ -133,9 +141,7 @@ REPRODUCE_OPTIONS = {
     "trial_seconds": "performance.trial_seconds",
     "workers": "workers",
     "drive": "performance.drive",
-    "brake_limits": "performance.brake_limits",
-    "support_speeds": "performance.support_speeds",
-    "overhead_registration": "vision.overhead_registration",
+    **STUDENT_OPTIONS,
 }
 
 
@@ -238,6 +244,15 @@ def _cmd_sweep(args) -> int:
     return 1 if summary["counts"]["failed"] else 0
 
 
+def student_changes(args) -> dict:
+    """Returns the config changes of the explicit ``STUDENT_OPTIONS`` among ``args``."""
+    return {
+        key: getattr(args, option)
+        for option, key in STUDENT_OPTIONS.items()
+        if getattr(args, option) is not None
+    }
+
+
 def _cmd_transfer(args) -> int:
     from imitation import perturbations, transfer, transfer_runs
 
@@ -251,12 +266,7 @@ def _cmd_transfer(args) -> int:
         changes["performance.trial_seconds"] = args.trial_seconds
     if args.brake_ahead is not None:
         changes["performance.brake_ahead"] = args.brake_ahead == "on"
-    if args.brake_limits is not None:
-        changes["performance.brake_limits"] = args.brake_limits
-    if args.support_speeds is not None:
-        changes["performance.support_speeds"] = args.support_speeds
-    if args.overhead_registration is not None:
-        changes["vision.overhead_registration"] = args.overhead_registration
+    changes.update(student_changes(args))
     sources = transfer_runs.expand_sources(args.reuse_from)
     if not sources:
         raise ValueError(f"--reuse-from {args.reuse_from[0]} is a sweep folder without run cells")

@@ -7,9 +7,9 @@ the directive at the speeds the robot really reaches. Per axis (forward speed, y
 fraction is the least-squares slope through the origin of the measured speed on the command sent
 at the step's start, over the steps so far with exponential forgetting, started from a prior of
 full speed (fraction 1) worth a few steps at the directives' speeds (forgotten alike), and kept
-within bounds. The
-delay between a command and the speeds it causes is not modelled: a ramp or a latency shows as a
-lower fraction, which is where the robot really is after the lookahead's horizon.
+within bounds. The delay between a command and the speeds it causes is not modelled: a ramp or a
+latency shows as a lower fraction, which is where the robot really is after the lookahead's
+horizon.
 """
 
 from __future__ import annotations

@@ -447,11 +447,12 @@ def test_student_options_set_their_config_key_and_name_the_folder(
     """``--overhead-registration``, ``--brake-limits`` and ``--support-speeds`` set their key
     (default the configuration's) and name the default output folder; none is a learning
     setting (runs share their networks); an unknown value is refused."""
-    from imitation.cli import _options_suffix, build_parser
+    from imitation.cli import _options_suffix, build_parser, student_changes
 
     source = [] if command == "reproduce" else ["--reuse-from", "RUN"]
     args = build_parser().parse_args([command, *source, flag, value])
     assert _options_suffix(args) == suffix
+    assert student_changes(args) == {key: value}
     section, name = key.split(".")
     if command == "reproduce":
         assert getattr(getattr(reproduce_config(args), section), name) == value
