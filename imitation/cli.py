@@ -108,9 +108,10 @@ BRAKE_LIMITS_HELP = (
 
 SUPPORT_SPEEDS_HELP = (
     "the speeds the hierarchical student's support lookahead follows each directive at: "
-    "nominal, its wheel commands, or measured, those scaled by the fractions of them the robot "
-    "is measured to achieve during each trial (a robot whose casters drag; default: the run's "
-    "performance.support_speeds, nominal)"
+    "nominal, its wheel commands; measured, those scaled by the fractions of them the robot "
+    "is measured to achieve during each trial (a robot whose casters drag); measured_forward, "
+    "the forward speed scaled so and the yaw rate nominal (default: the run's "
+    "performance.support_speeds, measured_forward)"
 )
 
 OVERHEAD_REGISTRATION_HELP = (

@@ -233,8 +233,10 @@ class PerformanceConfig:
         ``support_horizon_s``, raised to ``support_weight``; both 0: off. On by default since
         version 0.10.0 (the values chosen on tuning seeds 0-3, docs/results.md).
       support_speeds: the speeds the lookahead follows each directive at: 'nominal' (the
-        directives' wheel commands) or 'measured' (those scaled by the fractions of them the
-        robot is measured to achieve during the trial, ``imitation.speedgain``).
+        directives' wheel commands), 'measured' (those scaled by the fractions of them the
+        robot is measured to achieve during the trial, ``imitation.speedgain``) or
+        'measured_forward' (the forward speed scaled so, the yaw rate nominal: the default
+        since version 0.11.0, chosen on tuning seeds 0-3, docs/results.md).
     """
 
     trials: int = 50
@@ -245,7 +247,7 @@ class PerformanceConfig:
     brake_limits: str = "told"
     support_horizon_s: float = 0.5
     support_weight: float = 0.5
-    support_speeds: str = "nominal"
+    support_speeds: str = "measured_forward"
 
     def __post_init__(self):
         _check_count("performance.trials", self.trials)

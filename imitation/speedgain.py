@@ -9,7 +9,7 @@ at the step's start, over the steps so far with exponential forgetting, started 
 full speed (fraction 1) worth a few steps at the directives' speeds (forgotten alike), and kept
 within bounds. The delay between a command and the speeds it causes is not modelled: a ramp or a
 latency shows as a lower fraction, which is where the robot really is after the lookahead's
-horizon.
+horizon. An axis left unmeasured reports 1 (the nominal speed).
 """
 
 from __future__ import annotations
@@ -20,9 +20,15 @@ import math
 from perception.drive import DriveSpeeds
 
 #: What speeds the support lookahead follows each directive at
-#: (``PerformanceConfig.support_speeds``): the directives' nominal wheel commands, or those
-#: scaled by the fractions this module estimates.
-SUPPORT_SPEEDS = ("nominal", "measured")
+#: (``PerformanceConfig.support_speeds``): the directives' nominal wheel commands, those scaled
+#: by the fractions this module estimates, or the forward speed scaled and the yaw rate nominal.
+SUPPORT_SPEEDS = ("nominal", "measured", "measured_forward")
+
+#: The axes a ``SpeedGainEstimator`` measures under each measured ``SUPPORT_SPEEDS`` value.
+MEASURED_AXES = {"measured": ("forward", "yaw"), "measured_forward": ("forward",)}
+
+#: The axes, in the order of ``SpeedGainEstimator.gains``.
+AXES = ("forward", "yaw")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -58,10 +64,14 @@ class SpeedGainEstimator:
     Args:
       drive: the directives' speeds (the prior's scale).
       settings: the estimator's hyper-parameters.
+      axes: the axes measured (of ``AXES``); an axis left out reports the fraction 1.
     """
 
-    def __init__(self, drive: DriveSpeeds = DriveSpeeds(), settings=SpeedGainSettings()):
-        self.settings = settings
+    def __init__(self, drive: DriveSpeeds = DriveSpeeds(), settings=SpeedGainSettings(), axes=AXES):
+        axes = tuple(axes)
+        if not axes or any(axis not in AXES for axis in axes) or len(set(axes)) < len(axes):
+            raise ValueError(f"speed gain axes must be distinct names of {AXES}, got {axes!r}")
+        self.settings, self.axes = settings, axes
         # The prior's command magnitudes (m/s, deg/s) and its weight in their squares.
         scale = (drive.linear_mps, drive.turn_deg_s)
         self._prior = tuple(settings.prior_steps * s * s for s in scale)
@@ -94,9 +104,10 @@ class SpeedGainEstimator:
 
     @property
     def gains(self) -> tuple[float, float]:
-        """Returns the achieved fractions ``(forward, yaw)`` of the commanded speeds."""
+        """Returns the achieved fractions ``(forward, yaw)`` of the commanded speeds (1 on an
+        axis not measured)."""
         low, high = self.settings.bounds
         return tuple(
-            min(high, max(low, moment / power))
-            for moment, power in zip(self._moment, self._power, strict=True)
+            min(high, max(low, moment / power)) if axis in self.axes else 1.0
+            for axis, moment, power in zip(AXES, self._moment, self._power, strict=True)
         )

@@ -16,7 +16,7 @@ from imitation.limits import AccelerationLimitEstimator
 from imitation.observers import Calibration
 from imitation.parallel import run_parallel
 from imitation.results import Fig4Trace, PerformanceResult, SuccessRate, TrialRecord
-from imitation.speedgain import SpeedGainEstimator
+from imitation.speedgain import MEASURED_AXES, SpeedGainEstimator
 from peoplebot_sim.task import load
 from perception.localisation import CHI2_2DOF_95
 from perception.pose import wrap_radians
@@ -129,12 +129,14 @@ def make_agent(config: RunConfig, policy: str, word: str, env, model, calibratio
 
 def _support_arguments(config: RunConfig, policy: str) -> dict:
     """Returns the student agent's lookahead arguments: the hierarchical student's lookahead
-    and, with ``performance.support_speeds = "measured"``, its speed estimator; none for the
-    paper's network (it drives as printed)."""
+    and, with measured ``performance.support_speeds``, its speed estimator of the axes they
+    name; none for the paper's network (it drives as printed)."""
     support = _support(config) if policy == "student_hierarchical" else None
-    if support is None or config.performance.support_speeds == "nominal":
+    speeds = config.performance.support_speeds
+    if support is None or speeds == "nominal":
         return {"support": support}
-    return {"support": support, "speed_gains": SpeedGainEstimator(config.drive)}
+    axes = MEASURED_AXES[speeds]
+    return {"support": support, "speed_gains": SpeedGainEstimator(config.drive, axes=axes)}
 
 
 def _support(config: RunConfig) -> performance.SupportLookahead | None:

@@ -229,15 +229,20 @@ def test_support_lookahead_reweighs_each_directive_by_the_density_where_it_leads
 
 
 def test_measured_speeds_reach_the_hierarchical_students_lookahead(student_env, trained_associator):
-    """'nominal' (the default) gives no estimator; 'measured' gives the hierarchical student one
-    and the paper's network none; a student whose robot did not move between two commands
-    follows the directives at the lower fractions it measured; an estimator without a lookahead
-    and an unknown choice are refused by name."""
-    assert "speed_gains" not in trials._support_arguments(RunConfig(), "student_hierarchical")
-    measured = RunConfig().replace({"performance.support_speeds": "measured"})
+    """'nominal' gives no estimator; 'measured' gives the hierarchical student one of both axes,
+    'measured_forward' (the default) one of the forward axis, and the paper's network none; a
+    student whose robot did not move between two commands follows the directives at the lower
+    fractions it measured; an estimator without a lookahead and an unknown choice are refused
+    by name."""
+    nominal = RunConfig().replace({"performance.support_speeds": "nominal"})
+    assert "speed_gains" not in trials._support_arguments(nominal, "student_hierarchical")
     model = _DensityModel(x_m=1.2)
+    made = trials.make_agent(RunConfig(), "student_hierarchical", "go", student_env, model, None)
+    assert made.speed_gains.axes == ("forward",)
+    measured = RunConfig().replace({"performance.support_speeds": "measured"})
     agent = trials.make_agent(measured, "student_hierarchical", "go", student_env, model, None)
     assert isinstance(agent.speed_gains, SpeedGainEstimator)
+    assert agent.speed_gains.axes == ("forward", "yaw")
     flat = trials.make_agent(measured, "student", "go", student_env, trained_associator, None)
     assert flat.support is None and flat.speed_gains is None
     pose = (0.0, ARENA.half_side_m - 1.0, math.pi / 2)

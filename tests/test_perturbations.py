@@ -430,10 +430,10 @@ STUDENT_OPTIONS = [
     ),
     (
         "--support-speeds",
-        "measured",
-        "performance.support_speeds",
         "nominal",
-        "-support-speeds-measured",
+        "performance.support_speeds",
+        "measured_forward",
+        "-support-speeds-nominal",
         "guessed",
     ),
 ]

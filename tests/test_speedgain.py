@@ -61,6 +61,18 @@ def test_the_estimator_forgets_and_keeps_within_its_bounds():
             SpeedGainSettings(**{field: value})
 
 
+def test_an_axis_left_unmeasured_reports_full_speed_and_the_other_is_measured_as_before():
+    """Measuring the forward axis only, the forward fraction is the two-axis estimator's and the
+    yaw fraction stays 1; unknown or repeated axes are refused by name."""
+    both, forward = SpeedGainEstimator(DRIVE), SpeedGainEstimator(DRIVE, axes=("forward",))
+    for estimator in (both, forward):
+        drive_through(estimator, (0.4, 0.55), 60)
+    assert forward.gains == (both.gains[0], 1.0) and both.gains[1] < 0.6
+    for axes in ((), ("sideways",), ("yaw", "yaw")):
+        with pytest.raises(ValueError, match="speed gain axes"):
+            SpeedGainEstimator(DRIVE, axes=axes)
+
+
 def test_the_lookahead_follows_each_directive_at_the_achieved_speeds():
     """With fractions (0.5, 0.25) the forward outcome lies half as far and the turns a quarter
     as far round as at the nominal speeds."""
