@@ -19,16 +19,16 @@ import math
 
 from perception.drive import DriveSpeeds
 
+#: The axes, in the order of ``SpeedGainEstimator.gains``.
+AXES = ("forward", "yaw")
+
+#: The axes a ``SpeedGainEstimator`` measures under each measured ``SUPPORT_SPEEDS`` value.
+MEASURED_AXES = {"measured": AXES, "measured_forward": ("forward",)}
+
 #: What speeds the support lookahead follows each directive at
 #: (``PerformanceConfig.support_speeds``): the directives' nominal wheel commands, those scaled
 #: by the fractions this module estimates, or the forward speed scaled and the yaw rate nominal.
-SUPPORT_SPEEDS = ("nominal", "measured", "measured_forward")
-
-#: The axes a ``SpeedGainEstimator`` measures under each measured ``SUPPORT_SPEEDS`` value.
-MEASURED_AXES = {"measured": ("forward", "yaw"), "measured_forward": ("forward",)}
-
-#: The axes, in the order of ``SpeedGainEstimator.gains``.
-AXES = ("forward", "yaw")
+SUPPORT_SPEEDS = ("nominal", *MEASURED_AXES)
 
 
 @dataclasses.dataclass(frozen=True)
