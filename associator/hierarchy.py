@@ -42,6 +42,7 @@ OWN_PARAMS = (
     "perform_readout",
     "pose_heading_bins",
     "pose_tail_dof",
+    "transition_winner",
 )
 
 #: Hyper-parameters that act only when performing (``perform_batch``): they change no training,
@@ -57,15 +58,26 @@ PERFORM_ONLY_PARAMS = (
 #: How performing reads the motor directive out (``perform_readout``).
 PERFORM_READOUTS = ("posterior", "winner")
 
+#: Which lower winner recognition over time conditions the word transitions on
+#: (``transition_winner``).
+TRANSITION_WINNERS = ("current", "previous")
+
 #: Hyper-parameters that are names, checked against their allowed values instead.
-_NOT_NUMBERS = ("perform_readout",)
+_NOT_NUMBERS = ("perform_readout", "transition_winner")
 
 #: Hyper-parameters for which 0 is a setting (switches a read-out off), not an error.
 _MAY_BE_ZERO = ("perform_temperature", "pose_tail_dof")
 
 #: The word layer's pose and motor statistics (``count_word_statistics``), counted with the lower
 #: level frozen: further training of the lower level drops them.
-_WORD_STATISTICS = ("word_samples_", "word_pose_sums_", "word_pose_squares_", "word_motor_counts_")
+_WORD_STATISTICS = (
+    "word_samples_",
+    "word_pose_sums_",
+    "word_pose_squares_",
+    "word_motor_counts_",
+    "word_transitions_into_",
+    "statistics_last_word_",
+)
 
 #: The learned state, dropped by ``fit`` before it starts afresh.
 _LEARNED = (
@@ -208,6 +220,15 @@ class HierarchicalAssociator:
         the squared standardised distance ``d^2`` (default 10; files saved before version 0.8.0
         load with 0). Heavier tails keep a wide component from taking over the mixture far from
         every mean (0 or more; recognition is unchanged).
+    transition_winner : str
+        Recognition over time: 'current' (default) takes the word transitions counted per lower
+        winner of the step they lead into, ``p(word_t | word_(t-1), k_t)`` (counted by
+        ``count_word_statistics``): the teacher switches where it is and acts on the new word at
+        once, so the switch shows in the winner of that step; 'previous' per winner of the step
+        before, ``p(word_t | word_(t-1), k_(t-1))`` (counted while training; up to version 0.11.0,
+        and files saved before 0.12.0 load with it). Both backed off to ``p(word_t | word_(t-1))``
+        with ``unit_transition_prior``; without the counts of 'current' (not counted yet) the
+        read-out takes 'previous'.
     """
 
     def __init__(
@@ -228,6 +249,7 @@ class HierarchicalAssociator:
         perform_readout: str = "posterior",
         pose_heading_bins: int = 24,
         pose_tail_dof: float = 10.0,
+        transition_winner: str = "current",
     ):
         self.lower = lower
         self.motor_gain = motor_gain
@@ -244,6 +266,7 @@ class HierarchicalAssociator:
         self.perform_readout = perform_readout
         self.pose_heading_bins = pose_heading_bins
         self.pose_tail_dof = pose_tail_dof
+        self.transition_winner = transition_winner
 
     def _lower_estimator(self) -> Associator:
         """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
@@ -281,6 +304,7 @@ class HierarchicalAssociator:
             perform_readout=str(self.perform_readout),
             pose_heading_bins=int(self.pose_heading_bins),
             pose_tail_dof=float(self.pose_tail_dof),
+            transition_winner=str(self.transition_winner),
         )
         return params
 
@@ -296,6 +320,11 @@ class HierarchicalAssociator:
             raise ValueError(
                 f"unknown perform_readout {self.perform_readout!r}; allowed: "
                 f"{', '.join(PERFORM_READOUTS)}"
+            )
+        if self.transition_winner not in TRANSITION_WINNERS:
+            raise ValueError(
+                f"unknown transition_winner {self.transition_winner!r}; allowed: "
+                f"{', '.join(TRANSITION_WINNERS)}"
             )
         bins = self.pose_heading_bins
         number = isinstance(bins, (int, float, np.integer, np.floating)) and not isinstance(
@@ -415,8 +444,10 @@ class HierarchicalAssociator:
         heard word, lower winner (the recognition winner of vision and motor, as after
         training) and heading sector (``pose_heading_bins``), the number of samples, the sums of
         the pose and of its squares (the vision code's bump centres, in units of the code; the
-        heading as a unit vector) and the count of each directive performed there. Call it on the
-        training stream once training is over, in pieces if need be (the counts add up);
+        heading as a unit vector) and the count of each directive performed there; and, per lower
+        winner, the word transitions that lead into its samples (``transition_winner =
+        'current'``), between consecutive samples, across calls too. Call it on the training
+        stream once training is over, in order, in pieces if need be (the counts add up);
         ``partial_fit`` drops them, as the lower level then changes. Shapes as for
         :meth:`partial_fit`; ``performed`` (n, 4), the motor codes of what was done at each sample
         when ``motor`` is not that (e.g. directives inferred from the motion into each pose: the
@@ -437,12 +468,23 @@ class HierarchicalAssociator:
             self.word_pose_sums_ = np.zeros((n_words, n_components, 4))
             self.word_pose_squares_ = np.zeros((n_words, n_components, 2))
             self.word_motor_counts_ = np.zeros((n_words, n_components, N_MOTOR))
+        if not hasattr(self, "word_transitions_into_"):  # also on files saved before version 0.12.0
+            self.word_transitions_into_ = np.zeros((self.lower_.n_hidden, n_words, n_words))
+            self.statistics_last_word_ = -1
         if z.shape[0] == 0:
             return self
         self._statistics_changed()
         vision, motor = z[:, encoding.VISION_SLICE], z[:, encoding.MOTOR_SLICE]
-        component = self._lower_winners(vision, motor, 1.0) * bins + heading_sectors(vision, bins)
-        cell = self._heard_words(z[:, encoding.LANGUAGE_SLICE]) * n_components + component
+        winners = self._lower_winners(vision, motor, 1.0)
+        component = winners * bins + heading_sectors(vision, bins)
+        words = self._heard_words(z[:, encoding.LANGUAGE_SLICE])
+        cell = words * n_components + component
+        previous_words = np.concatenate([[self.statistics_last_word_], words[:-1]])
+        known = previous_words >= 0
+        np.add.at(
+            self.word_transitions_into_, (winners[known], previous_words[known], words[known]), 1.0
+        )
+        self.statistics_last_word_ = int(words[-1])
         size = n_words * n_components
 
         def add(target, weights=None):
@@ -601,16 +643,22 @@ class HierarchicalAssociator:
         counts = self.word_transitions_ + self.word_transition_floor
         return counts / counts.sum(axis=1, keepdims=True)
 
-    def _word_transitions_after(self, previous: np.ndarray) -> np.ndarray:
-        """Returns ``p(word_t | word_(t-1), k_(t-1))`` for previous winners ``previous`` (n,),
-        shape (n, n_words, n_words): the word transitions counted after each winner, backed off to
-        ``p(word_t | word_(t-1))``; where ``previous`` is -1 (not seen), or for a network without
-        the counts (files written before them), ``p(word_t | word_(t-1))`` alone."""
+    def _word_transitions_at(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
+        """Returns the word transitions into each of ``n`` steps, shape (n, n_words, n_words):
+        ``p(word_t | word_(t-1), k_t)`` at the current winners ``current`` (n,) with
+        ``transition_winner = 'current'`` and its counts, else ``p(word_t | word_(t-1), k_(t-1))``
+        at the previous winners ``previous`` (n,); backed off to ``p(word_t | word_(t-1))``, which
+        is taken alone where that winner is -1 (not seen) or for a network without the counts
+        (files written before them)."""
         overall = self.word_transition_probabilities_()
         out = np.broadcast_to(overall, (len(previous), *overall.shape)).copy()
-        known = previous >= 0
-        if hasattr(self, "word_unit_transitions_") and np.any(known):
-            counts = self.word_unit_transitions_[previous[known]]
+        if self.transition_winner == "current" and hasattr(self, "word_transitions_into_"):
+            table, winners = self.word_transitions_into_, np.asarray(current)
+        else:
+            table, winners = getattr(self, "word_unit_transitions_", None), np.asarray(previous)
+        known = winners >= 0
+        if table is not None and np.any(known):
+            counts = table[winners[known]]
             prior = float(self.unit_transition_prior)
             out[known] = (counts + prior * overall) / (counts.sum(axis=2, keepdims=True) + prior)
         return out
@@ -697,9 +745,9 @@ class HierarchicalAssociator:
         if self.has_word_statistics_ and m:  # how well each word's component fits the pose
             fit = self._pose_fit_at_winners(np.asarray(vision, float), winners_seen)
             evidence[seen] *= np.exp(self.pose_evidence * (fit - fit.max(axis=1, keepdims=True)))
-        # Where the words changed: the transitions after the previous step's winner (not seen,
-        # or the step before a gap: the overall ones).
-        transitions = self._word_transitions_after(previous)
+        # Where the words changed: the transitions at the winner ``transition_winner`` names (not
+        # seen: the overall ones).
+        transitions = self._word_transitions_at(previous, winners)
         beliefs = np.empty((len(seen), n_words))
         belief = state.posterior
         # The forward filter, one step at a time. Every transition probability and every

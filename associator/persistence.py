@@ -20,7 +20,10 @@ increasing) and ``transition_counts`` (m,), and ``last_sample`` ([word, winner] 
 training sample, -1 before any), so that training resumes exactly; optionally the word statistics
 of ``count_word_statistics``: ``word_samples`` (n_words, n_hidden), ``word_pose_sums`` (n_words,
 n_hidden, 4), ``word_pose_squares`` (n_words, n_hidden, 2), ``word_motor_counts`` (n_words,
-n_hidden, 4).
+n_hidden, 4), and ``word_transitions_into`` (n_hidden, n_words, n_words: the word transitions per
+lower winner of the step they lead into; absent from files written before version 0.12.0, whose
+``hierarchy_params`` also lack ``transition_winner``: they load with 'previous', the read-out they
+were made with).
 
 ``load`` refuses, naming the entry, a file whose counts contradict each other, which no file that
 ``save`` wrote does: counts that are not whole, word links that do not add up to ``n_steps``,
@@ -99,6 +102,10 @@ def save(model, path, metadata: dict | None = None) -> str:
             extra.update(
                 {key: np.asarray(getattr(model, attr), dtype=float) for key, attr in _STATISTICS}
             )
+            if hasattr(model, "word_transitions_into_"):  # files before version 0.12.0 lack it
+                extra["word_transitions_into"] = np.asarray(
+                    model.word_transitions_into_, dtype=float
+                )
         model = model.lower_
     params = model.get_params()
     state = model.rng_.bit_generator.state
@@ -152,8 +159,9 @@ def _read(path):
             if present and len(present) != len(_STATISTICS):
                 _fail(path, f"word statistics incomplete: has only {present}")
             data.update({key: archive[key] for key in present})
-            if "word_unit_transitions" in archive.files:  # files written before it lack it
-                data["word_unit_transitions"] = archive["word_unit_transitions"]
+            for key in ("word_unit_transitions", "word_transitions_into"):
+                if key in archive.files:  # files written before them lack them
+                    data[key] = archive[key]
     except ValueError as error:
         if "not a valid associator file" in str(error):
             raise
@@ -208,6 +216,7 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
         own.setdefault("perform_readout", "winner")  # saved before version 0.5.0
         own.setdefault("pose_heading_bins", 1)  # saved before version 0.6.0
         own.setdefault("pose_tail_dof", 0.0)  # saved before version 0.8.0: Gaussian components
+        own.setdefault("transition_winner", "previous")  # saved before version 0.12.0
         unfitted_lower = Associator(**lower.get_params())
         model = HierarchicalAssociator(lower=unfitted_lower, **own)
         model.validate_params()
@@ -381,3 +390,26 @@ def _word_statistics(path, model: HierarchicalAssociator, data) -> None:
         )
     for key, attr in _STATISTICS:
         setattr(model, attr, np.array(data[key], dtype=float))
+    if "word_transitions_into" in data:
+        _transitions_into(path, model, data["word_transitions_into"], samples)
+
+
+def _transitions_into(path, model: HierarchicalAssociator, into: np.ndarray, samples) -> None:
+    """Checks and sets the word transitions per lower winner of the step they lead into: whole,
+    and at each winner and word at most the samples the word statistics count there (each
+    sample after the first of a counted piece adds one)."""
+    n_words, n_hidden = len(model.vocabulary), model.lower_.n_hidden
+    if into.shape != (n_hidden, n_words, n_words):
+        _fail(
+            path,
+            f"word_transitions_into has shape {into.shape}, expected "
+            f"({n_hidden}, {n_words}, {n_words})",
+        )
+    if not np.all(np.isfinite(into)) or np.any(into < 0):
+        _fail(path, "word_transitions_into has negative or non-finite values")
+    _whole(path, "word_transitions_into", into)
+    per_unit = samples.reshape(n_words, n_hidden, -1).sum(axis=2)  # summed over heading sectors
+    if np.any(into.sum(axis=1).T > per_unit):
+        _fail(path, "word_transitions_into count more samples than word_samples at some winner")
+    model.word_transitions_into_ = np.array(into, dtype=float)
+    model.statistics_last_word_ = -1  # a later count starts a new piece

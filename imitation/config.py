@@ -161,6 +161,7 @@ class HierarchyConfig:
     perform_readout: str = _HIERARCHY_DEFAULTS["perform_readout"]
     pose_heading_bins: int = _HIERARCHY_DEFAULTS["pose_heading_bins"]
     pose_tail_dof: float = _HIERARCHY_DEFAULTS["pose_tail_dof"]
+    transition_winner: str = _HIERARCHY_DEFAULTS["transition_winner"]
 
     def hyper_parameters(self) -> dict:
         """Returns the hierarchical associator's own hyper-parameters by name."""
