@@ -85,8 +85,12 @@ class TeacherConfig:
         at most this.
       funnel_miss_m: each 'funnel' docking first pursues a line beside the centre line, its
         offset drawn uniformly within +- this, until its depth in front of the dock is below a
-        depth drawn uniformly within (0, ``funnel_lookahead_m``); then it steers at the dock,
-        so the demonstrations show how to correct a sideways miss near the table (0: never).
+        depth drawn uniformly within (0, ``funnel_miss_depth_fraction`` x
+        ``funnel_lookahead_m``); then it steers at the dock, so the demonstrations show how to
+        correct a sideways miss near the table (0: never).
+      funnel_miss_depth_fraction: see ``funnel_miss_m``, in (0, 1]; below 1 the misses end nearer
+        the table, so more dockings arrive at the dock's depth off to the side and show the
+        correction along the table.
       funnel_overshoot_s: each 'funnel' docking, on arriving at the dock, rolls on forward for a
         time drawn uniformly within (0, this) seconds (a disturbance: its wheels drive on while
         it commands what its controller says at the true pose), and a robot more than
@@ -135,6 +139,7 @@ class TeacherConfig:
     funnel_lookahead_m: float = 0.3
     funnel_tolerance_m: float = 0.05
     funnel_miss_m: float = 0.25
+    funnel_miss_depth_fraction: float = 1.0
     funnel_overshoot_s: float = 0.0
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0
@@ -164,6 +169,11 @@ class TeacherConfig:
             raise ValueError(
                 "teacher.pick_trigger_probability must be in (0, 1], got "
                 f"{self.pick_trigger_probability!r}"
+            )
+        if not 0 < self.funnel_miss_depth_fraction <= 1:
+            raise ValueError(
+                "teacher.funnel_miss_depth_fraction must be in (0, 1], got "
+                f"{self.funnel_miss_depth_fraction!r}"
             )
         for name in ("funnel_lookahead_m", "funnel_tolerance_m"):
             if getattr(self, name) <= 0:
@@ -359,7 +369,9 @@ class Teacher:
             self._miss_m = self._miss_depth_m = 0.0
             if c.docking == "funnel" and c.funnel_miss_m > 0:
                 self._miss_m = float(self._rng.uniform(-c.funnel_miss_m, c.funnel_miss_m))
-                self._miss_depth_m = float(self._rng.uniform(0.0, c.funnel_lookahead_m))
+                self._miss_depth_m = float(
+                    self._rng.uniform(0.0, c.funnel_miss_depth_fraction * c.funnel_lookahead_m)
+                )
             self._roll_on_s = 0.0
             if c.docking == "funnel" and c.funnel_overshoot_s > 0:
                 self._roll_on_s = float(self._rng.uniform(0.0, c.funnel_overshoot_s))

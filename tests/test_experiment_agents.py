@@ -594,6 +594,13 @@ def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
     quiet = Teacher(config.undisturbed(), rng=3)
     quiet.begin("pick")
     assert quiet._miss_m == 0.0
+    # ``funnel_miss_depth_fraction`` draws the depths within that share of the lookahead, the
+    # same draws scaled (1, the default, is the range above).
+    near = TeacherConfig(docking="funnel", funnel_miss_m=0.25, funnel_miss_depth_fraction=0.5)
+    _, near_depth = _drawn_per_pick(Teacher(near, rng=3), "_miss_m", "_miss_depth_m")
+    np.testing.assert_allclose(near_depth, 0.5 * depth)
+    with pytest.raises(ValueError, match="funnel_miss_depth_fraction must be in"):
+        TeacherConfig(funnel_miss_depth_fraction=0.0)
 
 
 def test_funnel_overshoot_rolls_on_past_the_dock_and_the_teacher_backs_out():
