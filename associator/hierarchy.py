@@ -716,9 +716,9 @@ class HierarchicalAssociator:
         """Recognises ``n`` consecutive samples over time: a belief over the words carried from
         step to step, a causal forward filter through the word transitions at the winner
         ``transition_winner`` names, ``p(word_t | word_(t-1), k_t)`` or ``p(word_t | word_(t-1),
-        k_(t-1))`` (backed off to ``p(word_t | word_(t-1))``), and the evidence ``p(k_t | k_(t-1), word)`` of the lower
-        winners (backed off to ``p(k_t | word)``), times ``N(pose_t | word, k_t) **
-        pose_evidence`` once the word statistics are counted.
+        k_(t-1))`` (backed off to ``p(word_t | word_(t-1))``), and the evidence ``p(k_t |
+        k_(t-1), word)`` of the lower winners (backed off to ``p(k_t | word)``), times
+        ``N(pose_t | word, k_t) ** pose_evidence`` once the word statistics are counted.
 
         Args:
           vision, motor: (m, 96) and (m, 4) codes of the samples that were seen, in order.

@@ -273,21 +273,23 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
     model.last_word_, model.last_winner_ = int(last[0]), int(last[1])
     if "word_unit_transitions" in data:
         after = data["word_unit_transitions"]
-        if after.shape != (n_hidden, n_words, n_words):
-            _fail(
-                path,
-                f"word_unit_transitions has shape {after.shape}, expected "
-                f"({n_hidden}, {n_words}, {n_words})",
-            )
-        if not np.all(np.isfinite(after)) or np.any(after < 0):
-            _fail(path, "word_unit_transitions has negative or non-finite values")
-        _whole(path, "word_unit_transitions", after)
+        _check_word_transition_table(path, "word_unit_transitions", after, n_hidden, n_words)
         if not np.array_equal(after.sum(axis=0), words):
             _fail(path, "word_unit_transitions do not add up to word_transitions")
         model.word_unit_transitions_ = np.array(after, dtype=float)
     if _STATISTICS[0][0] in data:
         _word_statistics(path, model, data)
     return model
+
+
+def _check_word_transition_table(path, key: str, table, n_hidden: int, n_words: int) -> None:
+    """Fails unless ``table`` is word transitions per lower winner: (n_hidden, n_words, n_words)
+    whole, finite, non-negative counts."""
+    if table.shape != (n_hidden, n_words, n_words):
+        _fail(path, f"{key} has shape {table.shape}, expected ({n_hidden}, {n_words}, {n_words})")
+    if not np.all(np.isfinite(table)) or np.any(table < 0):
+        _fail(path, f"{key} has negative or non-finite values")
+    _whole(path, key, table)
 
 
 def _whole(path, key: str, values: np.ndarray) -> None:
@@ -399,15 +401,7 @@ def _transitions_into(path, model: HierarchicalAssociator, into: np.ndarray, sam
     and at each winner and word at most the samples the word statistics count there (each
     sample after the first of a counted piece adds one)."""
     n_words, n_hidden = len(model.vocabulary), model.lower_.n_hidden
-    if into.shape != (n_hidden, n_words, n_words):
-        _fail(
-            path,
-            f"word_transitions_into has shape {into.shape}, expected "
-            f"({n_hidden}, {n_words}, {n_words})",
-        )
-    if not np.all(np.isfinite(into)) or np.any(into < 0):
-        _fail(path, "word_transitions_into has negative or non-finite values")
-    _whole(path, "word_transitions_into", into)
+    _check_word_transition_table(path, "word_transitions_into", into, n_hidden, n_words)
     per_unit = samples.reshape(n_words, n_hidden, -1).sum(axis=2)  # summed over heading sectors
     if np.any(into.sum(axis=1).T > per_unit):
         _fail(path, "word_transitions_into count more samples than word_samples at some winner")

@@ -9,7 +9,12 @@ import pytest
 
 from associator import encoding, persistence, synthetic
 from associator.encoding import DIRECTIVES, VISION_SLICE, WORDS, vision_code_centres
-from associator.hierarchy import OWN_PARAMS, HierarchicalAssociator, SequenceState
+from associator.hierarchy import (
+    _WORD_STATISTICS,
+    OWN_PARAMS,
+    HierarchicalAssociator,
+    SequenceState,
+)
 from associator.network import Associator
 
 N_LEARN = 30_000
@@ -732,14 +737,7 @@ def test_heading_sectors_split_the_posterior_components_and_keep_the_units_sums(
     def recounted(bins: int) -> HierarchicalAssociator:
         model = copy.deepcopy(counted[0])
         model.pose_heading_bins = bins
-        for name in (
-            "word_samples_",
-            "word_pose_sums_",
-            "word_pose_squares_",
-            "word_motor_counts_",
-            "word_transitions_into_",
-            "statistics_last_word_",
-        ):
+        for name in _WORD_STATISTICS:
             delattr(model, name)
         return model.count_word_statistics(train_vision, language, train_motor)
 
