@@ -67,8 +67,10 @@ def run_tasks(
         if cluster:
             ray.init(address=cluster, **options)
         else:
+            # "local": a new Ray of our own, even where another runs on this machine (a bare
+            # ray.init would join that one, whose CPUs cannot be set).
             cores = os.cpu_count() or 1
-            ray.init(num_cpus=max(workers or cores, 1) * cpus_per_task, **options)
+            ray.init(address="local", num_cpus=max(workers or cores, 1) * cpus_per_task, **options)
     try:
         task = ray.remote(num_cpus=cpus_per_task, max_retries=MAX_RETRIES)(function)
         waiting = list(jobs.items())

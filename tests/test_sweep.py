@@ -180,6 +180,34 @@ def test_a_rerun_skips_finished_cells(local_sweep, monkeypatch):
     assert summary["counts"] == {"finished": 0, "skipped": 2, "failed": 0}
 
 
+def test_without_an_address_a_local_ray_is_started_even_beside_a_running_cluster(monkeypatch):
+    """A Ray cluster already running on this machine (it leaves its address in Ray's temporary
+    folder, where a bare ``ray.init`` would find and join it): with no address and no
+    ``RAY_ADDRESS``, the tasks run on a new local Ray of ``workers`` CPUs, not on that cluster."""
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from imitation import raytasks
+
+    def _node_and_cpus(_):  # defined here, so Ray sends it by value
+        return ray.get_runtime_context().get_node_id(), ray.cluster_resources()["CPU"]
+
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
+    cluster = Cluster(
+        initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False}
+    )
+    cluster_node = cluster.head_node.node_id
+    try:
+        outcomes = list(raytasks.run_tasks(_node_and_cpus, {"a": (0,)}, workers=2, progress=False))
+        assert not ray.is_initialized(), "the local Ray should be shut down after the tasks"
+    finally:
+        cluster.shutdown()
+    assert outcomes[0].error is None
+    node, cpus = outcomes[0].value
+    assert node != cluster_node
+    assert cpus == 2
+
+
 def test_a_two_node_cluster_runs_cells_on_both_nodes_and_retries_a_dying_worker(
     tmp_path, monkeypatch
 ):
