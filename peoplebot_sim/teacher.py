@@ -90,7 +90,7 @@ class TeacherConfig:
         correct a sideways miss near the table (0: never).
       funnel_miss_depth_fraction: see ``funnel_miss_m``, in (0, 1]; below 1 the misses end nearer
         the table, so more dockings arrive at the dock's depth off to the side and show the
-        correction along the table.
+        correction along the table (0.5 since version 0.13.0; 1 before).
       funnel_overshoot_s: each 'funnel' docking, on arriving at the dock, rolls on forward for a
         time drawn uniformly within (0, this) seconds (a disturbance: its wheels drive on while
         it commands what its controller says at the true pose), and a robot more than
@@ -139,7 +139,7 @@ class TeacherConfig:
     funnel_lookahead_m: float = 0.3
     funnel_tolerance_m: float = 0.05
     funnel_miss_m: float = 0.25
-    funnel_miss_depth_fraction: float = 1.0
+    funnel_miss_depth_fraction: float = 0.5
     funnel_overshoot_s: float = 0.0
     heading_tol_deg: float = 10.0
     dock_heading_tol_deg: float = 3.0

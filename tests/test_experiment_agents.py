@@ -578,7 +578,7 @@ def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
     """Each 'pick' draws a miss: beyond its drawn depth the teacher pursues the line beside the
     centre line, nearer the table the dock; the reference's controller (``undisturbed``) never
     misses."""
-    config = TeacherConfig(docking="funnel", funnel_miss_m=0.25)
+    config = TeacherConfig(docking="funnel", funnel_miss_m=0.25, funnel_miss_depth_fraction=1.0)
     teacher = Teacher(config, rng=3)
     dock_x, dock_y, _ = teacher.dock_pose
     miss, depth = _drawn_per_pick(teacher, "_miss_m", "_miss_depth_m")
@@ -595,10 +595,13 @@ def test_funnel_docking_first_pursues_its_drawn_miss_then_the_dock():
     quiet.begin("pick")
     assert quiet._miss_m == 0.0
     # ``funnel_miss_depth_fraction`` draws the depths within that share of the lookahead, the
-    # same draws scaled (1, the default, is the range above).
-    near = TeacherConfig(docking="funnel", funnel_miss_m=0.25, funnel_miss_depth_fraction=0.5)
+    # same draws scaled (1 is the range above; the default since version 0.13.0 is half of it).
+    near = TeacherConfig(docking="funnel", funnel_miss_m=0.25, funnel_miss_depth_fraction=0.3)
     _, near_depth = _drawn_per_pick(Teacher(near, rng=3), "_miss_m", "_miss_depth_m")
-    np.testing.assert_allclose(near_depth, 0.5 * depth)
+    np.testing.assert_allclose(near_depth, 0.3 * depth)
+    default = TeacherConfig(docking="funnel", funnel_miss_m=0.25)
+    _, default_depth = _drawn_per_pick(Teacher(default, rng=3), "_miss_m", "_miss_depth_m")
+    np.testing.assert_allclose(default_depth, 0.5 * depth)
     with pytest.raises(ValueError, match="funnel_miss_depth_fraction must be in"):
         TeacherConfig(funnel_miss_depth_fraction=0.0)
 
