@@ -4,6 +4,8 @@ briefly trained on it."""
 import peoplebot_sim  # noqa: F401  (sets MUJOCO_GL=egl before mujoco loads)
 
 # isort: split
+import os
+
 import pytest
 
 from associator import encoding
@@ -16,6 +18,16 @@ ARENA = ArenaGeometry()
 
 #: Control steps of the shared stream (150 s of the teacher looping go-pick-lift).
 STREAM_STEPS = 1500
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _no_ray_cluster_from_the_environment():
+    """Keeps the tests on Ray instances they start themselves: a ``RAY_ADDRESS`` set where the
+    tests run (a CI machine's cluster) would send the sweeps' and transfers' tasks there."""
+    address = os.environ.pop("RAY_ADDRESS", None)
+    yield
+    if address is not None:
+        os.environ["RAY_ADDRESS"] = address
 
 
 @pytest.fixture(scope="session")
