@@ -43,6 +43,7 @@ OWN_PARAMS = (
     "pose_heading_bins",
     "pose_tail_dof",
     "transition_winner",
+    "pair_transition_prior",
 )
 
 #: Hyper-parameters that act only when performing (``perform_batch``): they change no training,
@@ -60,7 +61,7 @@ PERFORM_READOUTS = ("posterior", "winner")
 
 #: Which lower winner recognition over time conditions the word transitions on
 #: (``transition_winner``).
-TRANSITION_WINNERS = ("current", "previous")
+TRANSITION_WINNERS = ("current", "previous", "pair")
 
 #: Hyper-parameters that are names, checked against their allowed values instead.
 _NOT_NUMBERS = ("perform_readout", "transition_winner")
@@ -76,7 +77,10 @@ _WORD_STATISTICS = (
     "word_pose_squares_",
     "word_motor_counts_",
     "word_transitions_into_",
+    "pair_transition_keys_",
+    "pair_transition_counts_",
     "statistics_last_word_",
+    "statistics_last_winner_",
 )
 
 #: The learned state, dropped by ``fit`` before it starts afresh.
@@ -221,14 +225,22 @@ class HierarchicalAssociator:
         load with 0). Heavier tails keep a wide component from taking over the mixture far from
         every mean (0 or more; recognition is unchanged).
     transition_winner : str
-        Recognition over time: 'current' (default) takes the word transitions counted per lower
-        winner of the step they lead into, ``p(word_t | word_(t-1), k_t)`` (counted by
-        ``count_word_statistics``): the teacher switches where it is and acts on the new word at
-        once, so the switch shows in the winner of that step; 'previous' per winner of the step
-        before, ``p(word_t | word_(t-1), k_(t-1))`` (counted while training; up to version 0.11.0,
-        and files saved before 0.12.0 load with it). Both backed off to ``p(word_t | word_(t-1))``
-        with ``unit_transition_prior``; without the counts of 'current' (not counted yet) the
-        read-out takes 'previous'.
+        Recognition over time: 'pair' (default since version 0.14.0) takes the word transitions
+        counted per pair of lower winners, of the step before and of the step they lead into,
+        ``p(word_t | word_(t-1), k_(t-1), k_t)`` (counted by ``count_word_statistics``: a word
+        often begins where one unit follows another, which the unit it enters alone mixes with
+        every other way in), backed off to 'current' with ``pair_transition_prior``; 'current'
+        (versions 0.12.0-0.13.0) per lower winner of the step they lead into, ``p(word_t |
+        word_(t-1), k_t)`` (also counted by ``count_word_statistics``): the teacher switches where
+        it is and acts on the new word at once, so the switch shows in the winner of that step;
+        'previous' per winner of the step before, ``p(word_t | word_(t-1), k_(t-1))`` (counted
+        while training; up to version 0.11.0, and files saved before 0.12.0 load with it). The
+        last two backed off to ``p(word_t | word_(t-1))`` with ``unit_transition_prior``. Without
+        the counts of 'pair' (files saved before 0.14.0) the read-out takes 'current', without
+        those of 'current' (not counted yet) 'previous'.
+    pair_transition_prior : float
+        With ``transition_winner = "pair"``: the weight, in samples, of 'current''s transitions
+        in each pair's (default 1).
     """
 
     def __init__(
@@ -249,7 +261,8 @@ class HierarchicalAssociator:
         perform_readout: str = "posterior",
         pose_heading_bins: int = 24,
         pose_tail_dof: float = 10.0,
-        transition_winner: str = "current",
+        transition_winner: str = "pair",
+        pair_transition_prior: float = 1.0,
     ):
         self.lower = lower
         self.motor_gain = motor_gain
@@ -267,6 +280,7 @@ class HierarchicalAssociator:
         self.pose_heading_bins = pose_heading_bins
         self.pose_tail_dof = pose_tail_dof
         self.transition_winner = transition_winner
+        self.pair_transition_prior = pair_transition_prior
 
     def _lower_estimator(self) -> Associator:
         """Returns ``lower``, or the paper's ``Associator()`` for None; ValueError for others."""
@@ -305,6 +319,7 @@ class HierarchicalAssociator:
             pose_heading_bins=int(self.pose_heading_bins),
             pose_tail_dof=float(self.pose_tail_dof),
             transition_winner=str(self.transition_winner),
+            pair_transition_prior=float(self.pair_transition_prior),
         )
         return params
 
@@ -424,18 +439,9 @@ class HierarchicalAssociator:
 
     def _count_transitions(self, keys: np.ndarray) -> None:
         """Adds one count per key to the sparse transition table (sorted unique keys, counts)."""
-        if len(keys) == 0:
-            return
-        new_keys, new_counts = np.unique(keys, return_counts=True)
-        merged, inverse = np.unique(
-            np.concatenate([self.transition_keys_, new_keys]), return_inverse=True
+        self.transition_keys_, self.transition_counts_ = _add_sparse_counts(
+            self.transition_keys_, self.transition_counts_, keys
         )
-        self.transition_counts_ = np.bincount(
-            inverse,
-            weights=np.concatenate([self.transition_counts_, new_counts]),
-            minlength=len(merged),
-        )
-        self.transition_keys_ = merged
 
     def count_word_statistics(
         self, vision, language, motor, performed=None
@@ -446,7 +452,8 @@ class HierarchicalAssociator:
         the pose and of its squares (the vision code's bump centres, in units of the code; the
         heading as a unit vector) and the count of each directive performed there; and, per lower
         winner, the word transitions that lead into its samples (``transition_winner =
-        'current'``), between consecutive samples, across calls too. Call it on the training
+        'current'``), and per pair of winners, the step's before and its own (``'pair'``), between
+        consecutive samples, across calls too. Call it on the training
         stream once training is over, in order, in pieces if need be (the counts add up);
         ``partial_fit`` drops them, as the lower level then changes. Shapes as for
         :meth:`partial_fit`; ``performed`` (n, 4), the motor codes of what was done at each sample
@@ -471,6 +478,11 @@ class HierarchicalAssociator:
         if not hasattr(self, "word_transitions_into_"):  # also on files saved before version 0.12.0
             self.word_transitions_into_ = np.zeros((self.lower_.n_hidden, n_words, n_words))
             self.statistics_last_word_ = -1
+        if not hasattr(self, "pair_transition_keys_"):  # also on files saved before version 0.14.0
+            self.pair_transition_keys_ = np.zeros(0, np.int64)
+            self.pair_transition_counts_ = np.zeros(0)
+        if not hasattr(self, "statistics_last_winner_"):  # loaded files start a new piece
+            self.statistics_last_word_, self.statistics_last_winner_ = -1, -1
         if z.shape[0] == 0:
             return self
         self._statistics_changed()
@@ -480,11 +492,18 @@ class HierarchicalAssociator:
         words = self._heard_words(z[:, encoding.LANGUAGE_SLICE])
         cell = words * n_components + component
         previous_words = np.concatenate([[self.statistics_last_word_], words[:-1]])
+        previous_winners = np.concatenate([[self.statistics_last_winner_], winners[:-1]])
         known = previous_words >= 0
         np.add.at(
             self.word_transitions_into_, (winners[known], previous_words[known], words[known]), 1.0
         )
-        self.statistics_last_word_ = int(words[-1])
+        self.pair_transition_keys_, self.pair_transition_counts_ = _add_sparse_counts(
+            self.pair_transition_keys_,
+            self.pair_transition_counts_,
+            self._pair_key(previous_winners[known], winners[known], previous_words[known]) * n_words
+            + words[known],
+        )
+        self.statistics_last_word_, self.statistics_last_winner_ = int(words[-1]), int(winners[-1])
         size = n_words * n_components
 
         def add(target, weights=None):
@@ -643,16 +662,49 @@ class HierarchicalAssociator:
         counts = self.word_transitions_ + self.word_transition_floor
         return counts / counts.sum(axis=1, keepdims=True)
 
+    def _pair_key(self, previous, current, previous_word) -> np.ndarray:
+        """Returns the index of (previous winner, current winner, previous word) in a flattened
+        (n_hidden, n_hidden, n_words) table, int64 (times n_words plus the word: the pair table's
+        key)."""
+        n_hidden, n_words = self.lower_.n_hidden, len(self.vocabulary)
+        previous = np.asarray(previous, np.int64)
+        return (previous * n_hidden + current) * n_words + previous_word
+
     def _word_transitions_at(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
         """Returns the word transitions into each of ``n`` steps, shape (n, n_words, n_words):
         ``p(word_t | word_(t-1), k_t)`` at the current winners ``current`` (n,) with
-        ``transition_winner = 'current'`` and its counts, else ``p(word_t | word_(t-1), k_(t-1))``
-        at the previous winners ``previous`` (n,); backed off to ``p(word_t | word_(t-1))``, which
-        is taken alone where that winner is -1 (not seen) or for a network without the counts
-        (files written before them)."""
+        ``transition_winner`` 'current' or 'pair' and its counts, else ``p(word_t | word_(t-1),
+        k_(t-1))`` at the previous winners ``previous`` (n,); backed off to ``p(word_t |
+        word_(t-1))``, which is taken alone where that winner is -1 (not seen) or for a network
+        without the counts (files written before them). With 'pair' and its counts, those
+        backed off in turn to ``p(word_t | word_(t-1), k_(t-1), k_t)`` where both winners are
+        known."""
+        out = self._single_winner_transitions(previous, current)
+        if self.transition_winner != "pair" or not hasattr(self, "pair_transition_keys_"):
+            return out
+        previous, current = np.asarray(previous), np.asarray(current)
+        known = (previous >= 0) & (current >= 0)
+        n_words = len(self.vocabulary)
+        keys = self.pair_transition_keys_
+        if not np.any(known) or len(keys) == 0:
+            return out
+        first = self._pair_key(previous[known], current[known], 0) * n_words
+        wanted = first[:, None] + np.arange(n_words * n_words)  # (word_(t-1), word_t) blocks
+        at = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+        counts = np.where(keys[at] == wanted, self.pair_transition_counts_[at], 0.0)
+        counts = counts.reshape(-1, n_words, n_words)
+        prior = float(self.pair_transition_prior)
+        out[known] = (counts + prior * out[known]) / (counts.sum(axis=2, keepdims=True) + prior)
+        return out
+
+    def _single_winner_transitions(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
+        """Returns :meth:`_word_transitions_at`'s transitions at one winner: the current one
+        ('current' or 'pair', with its counts) or the previous one."""
         overall = self.word_transition_probabilities_()
         out = np.broadcast_to(overall, (len(previous), *overall.shape)).copy()
-        if self.transition_winner == "current" and hasattr(self, "word_transitions_into_"):
+        if self.transition_winner in ("current", "pair") and hasattr(
+            self, "word_transitions_into_"
+        ):
             table, winners = self.word_transitions_into_, np.asarray(current)
         else:
             table, winners = getattr(self, "word_unit_transitions_", None), np.asarray(previous)
@@ -939,3 +991,16 @@ class HierarchicalAssociator:
         return Performance(
             str(batch.directives[0]), batch.motor[0], self.lower_.hidden_code(batch.winners[0])
         )
+
+
+def _add_sparse_counts(keys: np.ndarray, counts: np.ndarray, new: np.ndarray):
+    """Returns a sparse count table (sorted unique int64 keys, their counts) with one more count
+    per key in ``new``."""
+    if len(new) == 0:
+        return keys, counts
+    new_keys, new_counts = np.unique(np.asarray(new, np.int64), return_counts=True)
+    merged, inverse = np.unique(np.concatenate([keys, new_keys]), return_inverse=True)
+    counts = np.bincount(
+        inverse, weights=np.concatenate([counts, new_counts]), minlength=len(merged)
+    )
+    return merged, counts

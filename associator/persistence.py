@@ -23,7 +23,10 @@ n_hidden, 4), ``word_pose_squares`` (n_words, n_hidden, 2), ``word_motor_counts`
 n_hidden, 4), and ``word_transitions_into`` (n_hidden, n_words, n_words: the word transitions per
 lower winner of the step they lead into; absent from files written before version 0.12.0, whose
 ``hierarchy_params`` also lack ``transition_winner``: they load with 'previous', the read-out they
-were made with).
+were made with), and the sparse word transitions per pair of lower winners ``pair_transition_keys``
+(m,) int64 (index in a flattened (n_hidden, n_hidden, n_words, n_words) table: previous winner,
+current winner, previous word, word; strictly increasing) and ``pair_transition_counts`` (m,)
+(absent from files written before version 0.14.0).
 
 ``load`` refuses, naming the entry, a file whose counts contradict each other, which no file that
 ``save`` wrote does: counts that are not whole, word links that do not add up to ``n_steps``,
@@ -106,6 +109,13 @@ def save(model, path, metadata: dict | None = None) -> str:
                 extra["word_transitions_into"] = np.asarray(
                     model.word_transitions_into_, dtype=float
                 )
+            if hasattr(model, "pair_transition_keys_"):  # files before version 0.14.0 lack it
+                extra["pair_transition_keys"] = np.asarray(
+                    model.pair_transition_keys_, dtype=np.int64
+                )
+                extra["pair_transition_counts"] = np.asarray(
+                    model.pair_transition_counts_, dtype=float
+                )
         model = model.lower_
     params = model.get_params()
     state = model.rng_.bit_generator.state
@@ -159,7 +169,12 @@ def _read(path):
             if present and len(present) != len(_STATISTICS):
                 _fail(path, f"word statistics incomplete: has only {present}")
             data.update({key: archive[key] for key in present})
-            for key in ("word_unit_transitions", "word_transitions_into"):
+            for key in (
+                "word_unit_transitions",
+                "word_transitions_into",
+                "pair_transition_keys",
+                "pair_transition_counts",
+            ):
                 if key in archive.files:  # files written before them lack them
                     data[key] = archive[key]
     except ValueError as error:
@@ -217,6 +232,7 @@ def _hierarchical(path, lower: Associator, data) -> HierarchicalAssociator:
         own.setdefault("pose_heading_bins", 1)  # saved before version 0.6.0
         own.setdefault("pose_tail_dof", 0.0)  # saved before version 0.8.0: Gaussian components
         own.setdefault("transition_winner", "previous")  # saved before version 0.12.0
+        own.setdefault("pair_transition_prior", 1.0)  # saved before version 0.14.0 (unused there)
         unfitted_lower = Associator(**lower.get_params())
         model = HierarchicalAssociator(lower=unfitted_lower, **own)
         model.validate_params()
@@ -394,6 +410,8 @@ def _word_statistics(path, model: HierarchicalAssociator, data) -> None:
         setattr(model, attr, np.array(data[key], dtype=float))
     if "word_transitions_into" in data:
         _transitions_into(path, model, data["word_transitions_into"], samples)
+    if "pair_transition_keys" in data or "pair_transition_counts" in data:
+        _pair_transitions(path, model, data)
 
 
 def _transitions_into(path, model: HierarchicalAssociator, into: np.ndarray, samples) -> None:
@@ -407,3 +425,35 @@ def _transitions_into(path, model: HierarchicalAssociator, into: np.ndarray, sam
         _fail(path, "word_transitions_into count more samples than word_samples at some winner")
     model.word_transitions_into_ = np.array(into, dtype=float)
     model.statistics_last_word_ = -1  # a later count starts a new piece
+    model.statistics_last_winner_ = -1
+
+
+def _pair_transitions(path, model: HierarchicalAssociator, data) -> None:
+    """Checks and sets the sparse word transitions per pair of lower winners: both entries, keys
+    strictly increasing within the table, whole positive counts, and per current winner and pair
+    of words at most what ``word_transitions_into`` counts (the same steps, maybe fewer pieces)."""
+    if not ("pair_transition_keys" in data and "pair_transition_counts" in data):
+        _fail(path, "pair_transition_keys and pair_transition_counts come together")
+    if not hasattr(model, "word_transitions_into_"):
+        _fail(path, "pair_transition_keys without word_transitions_into")
+    keys, counts = data["pair_transition_keys"], data["pair_transition_counts"]
+    n_words, n_hidden = len(model.vocabulary), model.lower_.n_hidden
+    size = n_hidden * n_hidden * n_words * n_words
+    if keys.ndim != 1 or counts.shape != keys.shape or keys.dtype != np.int64:
+        _fail(
+            path,
+            f"pair_transition_keys {keys.dtype} {keys.shape} and pair_transition_counts "
+            f"{counts.shape} must be 1-D of one length, the keys int64",
+        )
+    if len(keys) and (keys[0] < 0 or keys[-1] >= size or np.any(np.diff(keys) <= 0)):
+        _fail(path, f"pair_transition_keys must increase strictly within [0, {size})")
+    if not np.all(np.isfinite(counts)) or np.any(counts <= 0):
+        _fail(path, "pair_transition_counts has non-positive or non-finite values")
+    _whole(path, "pair_transition_counts", counts)
+    summed = np.zeros_like(model.word_transitions_into_)
+    current, words = (keys // (n_words * n_words)) % n_hidden, keys % (n_words * n_words)
+    np.add.at(summed, (current, words // n_words, words % n_words), counts)
+    if np.any(summed > model.word_transitions_into_):
+        _fail(path, "pair_transition_counts count more than word_transitions_into at some winner")
+    model.pair_transition_keys_ = np.array(keys)
+    model.pair_transition_counts_ = np.array(counts, dtype=float)

@@ -162,6 +162,7 @@ class HierarchyConfig:
     pose_heading_bins: int = _HIERARCHY_DEFAULTS["pose_heading_bins"]
     pose_tail_dof: float = _HIERARCHY_DEFAULTS["pose_tail_dof"]
     transition_winner: str = _HIERARCHY_DEFAULTS["transition_winner"]
+    pair_transition_prior: float = _HIERARCHY_DEFAULTS["pair_transition_prior"]
 
     def hyper_parameters(self) -> dict:
         """Returns the hierarchical associator's own hyper-parameters by name."""

@@ -179,7 +179,9 @@ def test_word_transitions_are_counted_per_current_winner_and_read_where_the_swit
     change right more often than with the previous winner's (measured 89.1% against 86.9% of the
     first three steps on the synthetic teacher). A file written before them loads with 'previous'
     and recognises as it did; one counting more switches than samples is refused."""
-    model, stream, (vision, language, motor, _) = counted
+    counted_model, stream, (vision, language, motor, _) = counted
+    model = copy.deepcopy(counted_model)
+    model.transition_winner = "current"
     winners = model.recognise_batch(vision, motor).winners
     expected = np.zeros((model.lower_.n_hidden, 3, 3))
     np.add.at(expected, (winners[1:], stream.word[:-1], stream.word[1:]), 1.0)
@@ -213,9 +215,8 @@ def test_word_transitions_are_counted_per_current_winner_and_read_where_the_swit
     np.testing.assert_array_equal(persistence.load(path).word_transitions_into_, expected)
     with np.load(path) as archive:
         entries = {k: archive[k] for k in archive.files}
-    np.savez(
-        tmp_path / "new.npz", **{k: v for k, v in entries.items() if k != "word_transitions_into"}
-    )
+    after_0_12 = ("word_transitions_into", "pair_transition_keys", "pair_transition_counts")
+    np.savez(tmp_path / "new.npz", **{k: v for k, v in entries.items() if k not in after_0_12})
     old = persistence.load(
         _with_saved_params(
             tmp_path / "new.npz", tmp_path / "old.npz", lambda own: own.pop("transition_winner")
@@ -234,6 +235,80 @@ def test_word_transitions_are_counted_per_current_winner_and_read_where_the_swit
         persistence.load(tmp_path / "bad.npz")
     with pytest.raises(ValueError, match="unknown transition_winner 'next'; allowed: current"):
         HierarchicalAssociator(transition_winner="next").validate_params()
+
+
+def test_word_transitions_are_counted_per_pair_of_winners_and_backed_off_to_the_current_one(
+    learned, counted, tmp_path
+):
+    """``count_word_statistics`` also counts each word transition at the pair of recognition
+    winners (previous, current), sparse, across calls too; with ``transition_winner = 'pair'``
+    recognition over time takes them backed off to 'current' with ``pair_transition_prior`` (a
+    huge prior gives 'current'), and a file written before them recognises with 'current'. A
+    file whose pair counts exceed the transitions into a winner is refused."""
+    counted_model, stream, (vision, language, motor, _) = counted
+    assert counted_model.transition_winner == "pair"  # the default since version 0.14.0
+    model = copy.deepcopy(counted_model)
+    model.transition_winner = "current"
+    n_hidden = model.lower_.n_hidden
+    winners = model.recognise_batch(vision, motor).winners
+    expected = np.zeros((n_hidden, n_hidden, 3, 3))
+    np.add.at(expected, (winners[:-1], winners[1:], stream.word[:-1], stream.word[1:]), 1.0)
+    dense = np.zeros(expected.size)
+    dense[model.pair_transition_keys_] = model.pair_transition_counts_
+    np.testing.assert_array_equal(dense.reshape(expected.shape), expected)
+    np.testing.assert_array_equal(expected.sum(axis=0), model.word_transitions_into_)
+    pieces = copy.deepcopy(learned[0])
+    for start, stop in ((0, 7_001), (7_001, 19_999), (19_999, len(vision))):
+        pieces.count_word_statistics(vision[start:stop], language[start:stop], motor[start:stop])
+    np.testing.assert_array_equal(pieces.pair_transition_keys_, model.pair_transition_keys_)
+    np.testing.assert_array_equal(pieces.pair_transition_counts_, model.pair_transition_counts_)
+    pair = copy.deepcopy(model)
+    pair.transition_winner = "pair"
+    previous, current = winners[:-1], winners[1:]
+    single = model._word_transitions_at(previous, current)
+    counts = expected[previous, current]
+    prior = pair.pair_transition_prior
+    np.testing.assert_allclose(
+        pair._word_transitions_at(previous, current),
+        (counts + prior * single) / (counts.sum(axis=2, keepdims=True) + prior),
+    )
+    unseen = pair._word_transitions_at(np.array([-1]), current[:1])  # no previous winner
+    np.testing.assert_allclose(unseen, model._word_transitions_at(np.array([-1]), current[:1]))
+    _, _, _, (test_vision, _, test_motor, _) = learned
+    huge = copy.deepcopy(pair)
+    huge.pair_transition_prior = 1e12
+    np.testing.assert_allclose(
+        huge.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
+        model.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
+        atol=1e-6,
+    )
+    read = pair.recognise_sequence(test_vision[:500], test_motor[:500]).scores
+    assert not np.allclose(
+        read, model.recognise_sequence(test_vision[:500], test_motor[:500]).scores
+    )
+    path = persistence.save(pair, tmp_path / "pair.npz")
+    loaded = persistence.load(path)
+    np.testing.assert_allclose(
+        loaded.recognise_sequence(test_vision[:500], test_motor[:500]).scores, read
+    )
+    with np.load(path) as archive:
+        entries = {k: archive[k] for k in archive.files}
+    pair_entries = ("pair_transition_keys", "pair_transition_counts")
+    np.savez(tmp_path / "old.npz", **{k: v for k, v in entries.items() if k not in pair_entries})
+    old = persistence.load(tmp_path / "old.npz")
+    assert old.transition_winner == "pair" and not hasattr(old, "pair_transition_keys_")
+    np.testing.assert_allclose(
+        old.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
+        model.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
+        atol=1e-9,
+    )
+    bad = entries["pair_transition_counts"].copy()
+    bad[0] += model.word_transitions_into_.sum() + 1
+    np.savez(tmp_path / "bad.npz", **{**entries, "pair_transition_counts": bad})
+    with pytest.raises(ValueError, match="pair_transition_counts count more than"):
+        persistence.load(tmp_path / "bad.npz")
+    with pytest.raises(ValueError, match="pair_transition_prior"):
+        HierarchicalAssociator(pair_transition_prior=0.0).validate_params()
 
 
 def test_pose_components_weigh_in_recognition_over_time_once_counted(learned, counted):
@@ -642,7 +717,8 @@ def test_lower_estimator_params_round_trip_and_files_keep_their_layout(tmp_path)
         "perform_readout": "posterior",
         "pose_heading_bins": 24,
         "pose_tail_dof": 10.0,
-        "transition_winner": "current",
+        "transition_winner": "pair",
+        "pair_transition_prior": 1.0,
     }
     assert model.vocabulary == WORDS
     model.fit(*_small_stream())
