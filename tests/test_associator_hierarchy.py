@@ -170,6 +170,15 @@ def test_word_transitions_are_counted_per_previous_winner(learned, tmp_path):
         persistence.load(tmp_path / "bad.npz")
 
 
+def _assert_same_over_time(a, b, vision, motor, atol=1e-9) -> None:
+    """Asserts that two networks recognise the first 500 samples over time alike (their scores)."""
+    np.testing.assert_allclose(
+        a.recognise_sequence(vision[:500], motor[:500]).scores,
+        b.recognise_sequence(vision[:500], motor[:500]).scores,
+        atol=atol,
+    )
+
+
 def test_word_transitions_are_counted_per_current_winner_and_read_where_the_switch_shows(
     learned, counted, tmp_path
 ):
@@ -223,11 +232,7 @@ def test_word_transitions_are_counted_per_current_winner_and_read_where_the_swit
         )
     )
     assert old.transition_winner == "previous" and not hasattr(old, "word_transitions_into_")
-    np.testing.assert_allclose(
-        old.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
-        previous.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
-        atol=1e-9,
-    )
+    _assert_same_over_time(old, previous, test_vision, test_motor)
     bad = entries["word_transitions_into"].copy()
     bad[winners[0], 0, 0] += model.word_samples_[:, winners[0]].sum() + 1
     np.savez(tmp_path / "bad.npz", **{**entries, "word_transitions_into": bad})
@@ -277,11 +282,7 @@ def test_word_transitions_are_counted_per_pair_of_winners_and_backed_off_to_the_
     _, _, _, (test_vision, _, test_motor, _) = learned
     huge = copy.deepcopy(pair)
     huge.pair_transition_prior = 1e12
-    np.testing.assert_allclose(
-        huge.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
-        model.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
-        atol=1e-6,
-    )
+    _assert_same_over_time(huge, model, test_vision, test_motor, atol=1e-6)
     read = pair.recognise_sequence(test_vision[:500], test_motor[:500]).scores
     assert not np.allclose(
         read, model.recognise_sequence(test_vision[:500], test_motor[:500]).scores
@@ -297,11 +298,7 @@ def test_word_transitions_are_counted_per_pair_of_winners_and_backed_off_to_the_
     np.savez(tmp_path / "old.npz", **{k: v for k, v in entries.items() if k not in pair_entries})
     old = persistence.load(tmp_path / "old.npz")
     assert old.transition_winner == "pair" and not hasattr(old, "pair_transition_keys_")
-    np.testing.assert_allclose(
-        old.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
-        model.recognise_sequence(test_vision[:500], test_motor[:500]).scores,
-        atol=1e-9,
-    )
+    _assert_same_over_time(old, model, test_vision, test_motor)
     bad = entries["pair_transition_counts"].copy()
     bad[0] += model.word_transitions_into_.sum() + 1
     np.savez(tmp_path / "bad.npz", **{**entries, "pair_transition_counts": bad})
