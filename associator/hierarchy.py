@@ -676,9 +676,9 @@ class HierarchicalAssociator:
         ``transition_winner`` 'current' or 'pair' and its counts, else ``p(word_t | word_(t-1),
         k_(t-1))`` at the previous winners ``previous`` (n,); backed off to ``p(word_t |
         word_(t-1))``, which is taken alone where that winner is -1 (not seen) or for a network
-        without the counts (files written before them). With 'pair' and its counts, those
-        backed off in turn to ``p(word_t | word_(t-1), k_(t-1), k_t)`` where both winners are
-        known."""
+        without the counts (files written before them). With 'pair' and its counts, where both
+        winners are known, ``p(word_t | word_(t-1), k_(t-1), k_t)`` backed off in turn to those
+        with ``pair_transition_prior``."""
         out = self._single_winner_transitions(previous, current)
         if self.transition_winner != "pair" or not hasattr(self, "pair_transition_keys_"):
             return out
