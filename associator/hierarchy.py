@@ -477,7 +477,6 @@ class HierarchicalAssociator:
             self.word_motor_counts_ = np.zeros((n_words, n_components, N_MOTOR))
         if not hasattr(self, "word_transitions_into_"):  # also on files saved before version 0.12.0
             self.word_transitions_into_ = np.zeros((self.lower_.n_hidden, n_words, n_words))
-            self.statistics_last_word_ = -1
         if not hasattr(self, "pair_transition_keys_"):  # also on files saved before version 0.14.0
             self.pair_transition_keys_ = np.zeros(0, np.int64)
             self.pair_transition_counts_ = np.zeros(0)
@@ -500,8 +499,9 @@ class HierarchicalAssociator:
         self.pair_transition_keys_, self.pair_transition_counts_ = _add_sparse_counts(
             self.pair_transition_keys_,
             self.pair_transition_counts_,
-            self._pair_key(previous_winners[known], winners[known], previous_words[known]) * n_words
-            + words[known],
+            self._pair_key(
+                previous_winners[known], winners[known], previous_words[known], words[known]
+            ),
         )
         self.statistics_last_word_, self.statistics_last_winner_ = int(words[-1]), int(winners[-1])
         size = n_words * n_components
@@ -662,13 +662,12 @@ class HierarchicalAssociator:
         counts = self.word_transitions_ + self.word_transition_floor
         return counts / counts.sum(axis=1, keepdims=True)
 
-    def _pair_key(self, previous, current, previous_word) -> np.ndarray:
-        """Returns the index of (previous winner, current winner, previous word) in a flattened
-        (n_hidden, n_hidden, n_words) table, int64 (times n_words plus the word: the pair table's
-        key)."""
+    def _pair_key(self, previous, current, previous_word, word) -> np.ndarray:
+        """Returns the index of (previous winner, current winner, previous word, word) in a
+        flattened (n_hidden, n_hidden, n_words, n_words) table, int64: the pair table's key."""
         n_hidden, n_words = self.lower_.n_hidden, len(self.vocabulary)
         previous = np.asarray(previous, np.int64)
-        return (previous * n_hidden + current) * n_words + previous_word
+        return ((previous * n_hidden + current) * n_words + previous_word) * n_words + word
 
     def _word_transitions_at(self, previous: np.ndarray, current: np.ndarray) -> np.ndarray:
         """Returns the word transitions into each of ``n`` steps, shape (n, n_words, n_words):
@@ -685,14 +684,13 @@ class HierarchicalAssociator:
         previous, current = np.asarray(previous), np.asarray(current)
         known = (previous >= 0) & (current >= 0)
         n_words = len(self.vocabulary)
-        keys = self.pair_transition_keys_
-        if not np.any(known) or len(keys) == 0:
+        if not np.any(known):
             return out
-        first = self._pair_key(previous[known], current[known], 0) * n_words
+        first = self._pair_key(previous[known], current[known], 0, 0)
         wanted = first[:, None] + np.arange(n_words * n_words)  # (word_(t-1), word_t) blocks
-        at = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
-        counts = np.where(keys[at] == wanted, self.pair_transition_counts_[at], 0.0)
-        counts = counts.reshape(-1, n_words, n_words)
+        counts = _sparse_counts_at(
+            self.pair_transition_keys_, self.pair_transition_counts_, wanted
+        ).reshape(-1, n_words, n_words)
         prior = float(self.pair_transition_prior)
         out[known] = (counts + prior * out[known]) / (counts.sum(axis=2, keepdims=True) + prior)
         return out
@@ -742,10 +740,7 @@ class HierarchicalAssociator:
             return evidence
         before, now = previous[known], current[known]
         keys = self._transition_key(np.arange(n_words)[None, :], before[:, None], now[:, None])
-        at = np.minimum(np.searchsorted(table, keys), len(table) - 1)
-        hit = table[at] == keys
-        counts = np.zeros(keys.shape)
-        counts[hit] = self.transition_counts_[at[hit]]
+        counts = _sparse_counts_at(table, self.transition_counts_, keys)
         leaving = (
             np.bincount(
                 table // n_hidden, weights=self.transition_counts_, minlength=n_words * n_hidden
@@ -1004,3 +999,12 @@ def _add_sparse_counts(keys: np.ndarray, counts: np.ndarray, new: np.ndarray):
         inverse, weights=np.concatenate([counts, new_counts]), minlength=len(merged)
     )
     return merged, counts
+
+
+def _sparse_counts_at(keys: np.ndarray, counts: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """Returns the counts of a sparse count table (sorted unique keys, their counts) at the keys
+    ``wanted`` (any shape), 0 where a key is not in the table."""
+    if len(keys) == 0:
+        return np.zeros(np.shape(wanted))
+    at = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+    return np.where(keys[at] == wanted, counts[at], 0.0)

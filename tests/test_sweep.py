@@ -180,10 +180,11 @@ def test_a_rerun_skips_finished_cells(local_sweep, monkeypatch):
     assert summary["counts"] == {"finished": 0, "skipped": 2, "failed": 0}
 
 
-def test_without_an_address_a_local_ray_is_started_even_beside_a_running_cluster(monkeypatch):
+def test_without_an_address_a_local_ray_is_started_even_beside_a_running_cluster():
     """A Ray cluster already running on this machine (it leaves its address in Ray's temporary
     folder, where a bare ``ray.init`` would find and join it): with no address and no
-    ``RAY_ADDRESS``, the tasks run on a new local Ray of ``workers`` CPUs, not on that cluster."""
+    ``RAY_ADDRESS`` (set aside for the tests, conftest.py), the tasks run on a new local Ray of
+    ``workers`` CPUs, not on that cluster."""
     import ray
     from ray.cluster_utils import Cluster
 
@@ -192,7 +193,6 @@ def test_without_an_address_a_local_ray_is_started_even_beside_a_running_cluster
     def _node_and_cpus(_):  # defined here, so Ray sends it by value
         return ray.get_runtime_context().get_node_id(), ray.cluster_resources()["CPU"]
 
-    monkeypatch.delenv("RAY_ADDRESS", raising=False)
     cluster = Cluster(
         initialize_head=True, head_node_args={"num_cpus": 1, "include_dashboard": False}
     )
