@@ -39,6 +39,10 @@ class TrackingConfig:
         prediction is rejected as an outlier; ``inf`` disables gating. A track that keeps rejecting
         is lost after ``max_coast_s`` and then restarts from the next measurement.
       initial_velocity_std: standard deviations of the unknown initial velocity ``(m/s, rad/s)``.
+      max_speed_mps, max_yaw_rate_radps: the fastest a robot moves and turns; the filtered
+        velocity is clipped to them after every update. The yaw-rate bound below
+        ``2 pi / max_coast_s`` keeps a track from locking onto a spin that turns a whole number of
+        times between the frames it accepts (wrapped innovations cannot see it).
     """
 
     acceleration_std_mps2: float = 1.0
@@ -47,9 +51,17 @@ class TrackingConfig:
     measurement_floor_std: tuple[float, float, float] = (0.005, 0.005, np.radians(0.5))
     gate_mahalanobis: float = 6.0
     initial_velocity_std: tuple[float, float] = (0.5, 1.5)
+    max_speed_mps: float = 1.5
+    max_yaw_rate_radps: float = np.pi
 
     def __post_init__(self):
-        for name in ("acceleration_std_mps2", "yaw_acceleration_std_radps2", "max_coast_s"):
+        for name in (
+            "acceleration_std_mps2",
+            "yaw_acceleration_std_radps2",
+            "max_coast_s",
+            "max_speed_mps",
+            "max_yaw_rate_radps",
+        ):
             value = getattr(self, name)
             if not np.isfinite(value) or value <= 0:
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")
@@ -211,9 +223,19 @@ class KalmanTrack:
         gain = self.covariance_ @ h.T @ np.linalg.inv(s)
         self.state_ = self.state_ + gain @ innovation
         self.state_[2] = wrap_radians(self.state_[2])
+        self._bound_velocity()
         i_kh = np.eye(6) - gain @ h
         self.covariance_ = i_kh @ self.covariance_ @ i_kh.T + gain @ r @ gain.T  # Joseph form
         return True
+
+    def _bound_velocity(self) -> None:
+        """Clips the state's speed and yaw rate to what a robot can do (``max_speed_mps``,
+        ``max_yaw_rate_radps``), keeping the direction of travel."""
+        speed = float(np.hypot(self.state_[3], self.state_[4]))
+        if speed > self.config.max_speed_mps:
+            self.state_[3:5] *= self.config.max_speed_mps / speed
+        limit = self.config.max_yaw_rate_radps
+        self.state_[5] = float(np.clip(self.state_[5], -limit, limit))
 
     def predict_pose(self, time_s: float) -> np.ndarray | None:
         """Returns the pose ``(x_m, y_m, yaw_rad)`` the track expects at ``time_s`` without changing

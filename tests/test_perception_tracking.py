@@ -58,6 +58,45 @@ def test_outlier_is_gated_and_not_reported_as_seen():
     assert est.status == "predicted" and abs(est.pose[0]) < 0.05
 
 
+def _track_after_a_wrong_first_fix(config: TrackingConfig) -> tuple[int, int, float]:
+    """A first fix 40 cm off and turned round (an own pose not yet found), 0.4 s unseen, then a
+    robot driving slowly at a steady heading, measured every 0.1 s; returns the steps accepted,
+    the steps whose heading points the wrong way and the final yaw rate (rad/s)."""
+    track = KalmanTrack("teacher", config)
+    track.step(0.0, (-0.118, 0.74, -0.279))
+    for k in range(1, 5):
+        track.step(0.1 * k, None)
+    rng = np.random.default_rng(0)
+    accepted = backwards = 0
+    for k in range(5, 200):
+        truth = np.array([-0.6 - 0.03 * (k - 5), 0.92 + 0.02 * (k - 5), 2.556])
+        noisy = truth + rng.normal(0.0, [0.003, 0.003, 0.01])
+        est = track.step(0.1 * k, noisy, np.diag([0.003**2, 0.003**2, 0.01**2]))
+        accepted += est.status == "seen"
+        backwards += est.pose is not None and np.cos(est.pose[2] - truth[2]) < 0
+    return accepted, backwards, float(est.velocity[2])
+
+
+def test_a_wrong_first_fix_does_not_lock_the_track_onto_an_aliased_spin():
+    # Without the yaw-rate bound the filter turns about 15.7 rad/s, a whole turn between the
+    # frames it accepts (one in four), and points the wrong way on most steps between them.
+    unbounded = TrackingConfig(max_speed_mps=1e9, max_yaw_rate_radps=1e9)
+    accepted, backwards, yaw_rate = _track_after_a_wrong_first_fix(unbounded)
+    assert accepted < 60 and backwards > 90 and abs(yaw_rate) > 10
+    accepted, backwards, yaw_rate = _track_after_a_wrong_first_fix(TrackingConfig())
+    assert accepted >= 180 and backwards <= 10 and abs(yaw_rate) < 0.5
+
+
+def test_velocity_is_clipped_to_the_robot_limits():
+    track = KalmanTrack("teacher", TrackingConfig(max_speed_mps=0.3, max_yaw_rate_radps=1.0))
+    for k in range(20):  # 0.5 m/s along (3, 4) / 5 and 2 rad/s
+        t = 0.1 * k
+        est = track.step(t, (0.3 * t, 0.4 * t, np.angle(np.exp(2j * t))))
+    assert np.hypot(*est.velocity[:2]) == pytest.approx(0.3)
+    assert est.velocity[1] / est.velocity[0] == pytest.approx(0.4 / 0.3, rel=0.05)
+    assert est.velocity[2] == pytest.approx(1.0)
+
+
 def test_bad_inputs_raise():
     track = KalmanTrack("teacher")
     track.step(1.0, (0.0, 0.0, 0.0))
@@ -67,3 +106,5 @@ def test_bad_inputs_raise():
         track.step(2.0, (0.0, np.nan, 0.0))
     with pytest.raises(ValueError, match="max_coast_s"):
         TrackingConfig(max_coast_s=0.0)
+    with pytest.raises(ValueError, match="max_yaw_rate_radps"):
+        TrackingConfig(max_yaw_rate_radps=-1.0)
